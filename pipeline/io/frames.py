@@ -1,0 +1,141 @@
+"""Frame sources: lazily read image files or a video, decode each frame once.
+
+An image-file source reads the file's bytes, decodes them with ``cv2.imdecode`` and
+hands both on, so the Rerun sink can pass JPEG/PNG bytes through without re-encoding.
+Nothing is cached: a 10 000-frame sequence holds only its list of file names.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from pipeline.errors import InputError
+
+IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
+VIDEO_EXTENSIONS = (".mp4", ".avi", ".mov", ".mkv", ".mpg", ".mpeg", ".wmv", ".m4v", ".webm")
+_MEDIA_TYPES = {".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".png": "image/png"}
+
+
+@dataclass(frozen=True, slots=True)
+class EncodedFrame:
+    """The source bytes of a frame and their media type (``image/jpeg`` or ``image/png``)."""
+
+    data: bytes
+    media_type: str
+
+
+@dataclass(frozen=True, slots=True)
+class RawFrame:
+    """One decoded frame: the array as stored (uint8/uint16, 1 or 3 channels) and its bytes."""
+
+    image: np.ndarray
+    encoded: EncodedFrame | None
+
+
+def natural_key(name: str) -> list[object]:
+    """Sort key that orders ``frame2`` before ``frame10``."""
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
+
+
+def list_images(folder: Path) -> list[Path]:
+    """Image files directly inside ``folder``, in natural sorted order."""
+    files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
+    return sorted(files, key=lambda p: natural_key(p.name))
+
+
+class ImageListSource:
+    """Frames stored as one image file each."""
+
+    def __init__(self, paths: list[Path]):
+        self.paths = paths
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    @property
+    def description(self) -> str:
+        return f"{self.paths[0].parent}" if self.paths else "(no frames)"
+
+    def read(self, index0: int) -> RawFrame:
+        """Decode frame ``index0`` (0-based). Raises InputError when it cannot be read."""
+        path = self.paths[index0]
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise InputError(f"cannot read frame {index0 + 1}: {path}: {exc.strerror}") from None
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        if image is None or image.size == 0:
+            raise InputError(f"unreadable frame {index0 + 1}: {path} is not a decodable image")
+        if image.ndim == 3 and image.shape[2] == 4:
+            image = cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+        media = _MEDIA_TYPES.get(path.suffix.lower())
+        if media is not None and image.dtype != np.uint8:
+            media = None  # 16-bit PNG: the viewer gets the normalized 8-bit frame instead
+        return RawFrame(image, EncodedFrame(data, media) if media else None)
+
+    def iterate(self, start0: int = 0) -> Iterator[RawFrame]:
+        for i in range(start0, len(self.paths)):
+            yield self.read(i)
+
+
+class VideoSource:
+    """Frames of a video file, decoded sequentially by OpenCV's ``VideoCapture``."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        cap = cv2.VideoCapture(str(path))
+        if not cap.isOpened():
+            raise InputError(f"cannot open video {path} (OpenCV VideoCapture failed)")
+        self._count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        self.fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        cap.release()
+        if self._count <= 0:
+            raise InputError(f"video {path} reports no frames")
+
+    def __len__(self) -> int:
+        return self._count
+
+    @property
+    def description(self) -> str:
+        return str(self.path)
+
+    def read(self, index0: int) -> RawFrame:
+        for i, frame in enumerate(self.iterate(index0)):
+            if i == 0:
+                return frame
+        raise InputError(f"video {self.path}: frame {index0 + 1} cannot be decoded")
+
+    def iterate(self, start0: int = 0) -> Iterator[RawFrame]:
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            if start0:
+                cap.set(cv2.CAP_PROP_POS_FRAMES, start0)
+            for i in range(start0, self._count):
+                ok, image = cap.read()
+                if not ok or image is None:
+                    raise InputError(f"video {self.path}: frame {i + 1} cannot be decoded")
+                yield RawFrame(image, None)
+        finally:
+            cap.release()
+
+
+FrameSource = ImageListSource | VideoSource
+
+
+def is_grey(image: np.ndarray) -> bool:
+    """True for a single-channel frame or a 3-channel frame whose channels agree (+-2 levels)."""
+    if image.ndim == 2:
+        return True
+    if image.ndim == 3 and image.shape[2] == 3:
+        sample = image[:: max(image.shape[0] // 64, 1), :: max(image.shape[1] // 64, 1)].astype(np.int32)
+        return bool(
+            np.abs(sample[..., 0] - sample[..., 1]).max() <= 2
+            and np.abs(sample[..., 1] - sample[..., 2]).max() <= 2
+        )
+    return False

@@ -1,0 +1,54 @@
+"""Reading tracker results back: our ``tracks.csv`` or a per-frame box file.
+
+``tracks.csv`` holds MOTChallenge rows ``frame,id,x,y,w,h,conf,-1,-1,-1`` in the 0-based
+continuous convention. A file of one ``x,y,w,h`` (or 8-value polygon) per line, as the
+single-object toolkits write, is read as target 1, line k = frame k; a row of zeros or
+NaN means no output in that frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.errors import InputError
+from pipeline.io.groundtruth import parse_box_file, parse_mot_rows
+
+
+@dataclass(frozen=True)
+class TrackTable:
+    """Results per track id: ``boxes[id]`` is ``(N, 4)`` with NaN rows where nothing was output."""
+
+    boxes: dict[int, np.ndarray]
+    confidence: dict[int, np.ndarray]
+
+
+def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
+    """Read ``tracks.csv`` (MOT rows) or a per-frame box file for a sequence of ``n_frames``."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"results file not found: {p}")
+    first = next((ln for ln in p.read_text().splitlines() if ln.strip()), None)
+    if first is None:
+        return TrackTable({}, {})
+    n_cols = len([c for c in first.replace(",", " ").split() if c])
+    if n_cols in (4, 8):
+        arr = parse_box_file(p, "xywh", 0.0)
+        if arr.shape[0] > n_frames:
+            raise InputError(f"{p}: {arr.shape[0]} result lines for a sequence of {n_frames} frames")
+        boxes = np.full((n_frames, 4), np.nan)
+        boxes[: arr.shape[0]] = arr
+        return TrackTable({1: boxes}, {1: np.where(np.isnan(boxes[:, 0]), np.nan, 1.0)})
+    boxes_d: dict[int, np.ndarray] = {}
+    conf_d: dict[int, np.ndarray] = {}
+    for frame, tid, box, conf, _vis in parse_mot_rows(p, base=0.0):
+        if frame > n_frames:
+            raise InputError(f"{p}: row for frame {frame} but the sequence has {n_frames} frames")
+        if tid not in boxes_d:
+            boxes_d[tid] = np.full((n_frames, 4), np.nan)
+            conf_d[tid] = np.full(n_frames, np.nan)
+        boxes_d[tid][frame - 1] = box
+        conf_d[tid][frame - 1] = conf
+    return TrackTable(dict(sorted(boxes_d.items())), dict(sorted(conf_d.items())))

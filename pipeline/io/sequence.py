@@ -1,0 +1,462 @@
+"""Sequence folders: layout detection, lazy frame pairs, ground truth.
+
+The layouts of design.md are recognised by their folder and file names:
+
+=============  =================  ==================  ====================================  ====
+layout         visible            infrared            ground truth                          base
+=============  =================  ==================  ====================================  ====
+rgbt234        ``visible/``       ``infrared/``       ``visible.txt``, ``infrared.txt``     0
+gtot           ``v/``             ``i/``              ``groundTruth_v.txt``/``_i`` x1y1x2y2 0
+vot-rgbt       ``color/``         ``ir/``             ``groundtruth.txt`` (box or polygon)  0
+vtuav          ``rgb/``           ``ir/``             ``rgb.txt``/``ir.txt`` x1y1x2y2 /10   0
+video-pair     ``visible.<ext>``  ``infrared.<ext>``  any of the above files if present     0
+otb            ``img/`` (colour)  ``img/`` (grey)     ``groundtruth_rect.txt``              1
+mot            ``img1/``          ``img1/``           ``gt/gt.txt``                         1
+vot            frames in folder   frames in folder    ``groundtruth.txt``                   0
+=============  =================  ==================  ====================================  ====
+
+"base" is the coordinate the file gives the first pixel's corner; it is subtracted on
+the way in (override with ``gt_base``). A MOTChallenge ``gt.txt`` (or ``gt/gt.txt``)
+beside the frames takes precedence over the single-target files (its base is 1).
+
+Channels of a one-channel folder are decided from the first frame (grey = infrared,
+colour = visible) unless ``channel`` says otherwise. 16-bit infrared frames are read as
+16-bit; the trackers get them normalized to 8 bits by a per-sequence percentile stretch
+(0.5th to 99.5th percentile over up to 16 frames spread over the sequence, mapped to
+0..255), and the raw array stays in ``FramePair.infrared_raw``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from pipeline.errors import InputError
+from pipeline.io.frames import (
+    IMAGE_EXTENSIONS,
+    VIDEO_EXTENSIONS,
+    EncodedFrame,
+    FrameSource,
+    ImageListSource,
+    RawFrame,
+    VideoSource,
+    is_grey,
+    list_images,
+)
+from pipeline.io.groundtruth import (
+    MotTruth,
+    expand_sparse,
+    fit_length,
+    parse_box_file,
+    parse_mot_truth,
+)
+
+CHANNELS = ("visible", "infrared")
+
+
+@dataclass(frozen=True)
+class FramePair:
+    """One registered frame pair as the trackers see it.
+
+    ``visible`` is ``(H, W, 3)`` uint8 BGR, ``infrared`` ``(H, W)`` uint8 (normalized);
+    either may be None in a one-channel sequence. ``infrared_raw`` is the IR frame as
+    stored (uint16 for 16-bit sensors). ``*_encoded`` are the source bytes when the frame
+    came from a JPEG/PNG file that still matches the array (None otherwise).
+    """
+
+    index: int
+    visible: np.ndarray | None
+    infrared: np.ndarray | None
+    infrared_raw: np.ndarray | None = None
+    visible_encoded: EncodedFrame | None = None
+    infrared_encoded: EncodedFrame | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of the frames."""
+        img = self.visible if self.visible is not None else self.infrared
+        assert img is not None  # a FramePair always has at least one channel
+        return img.shape[0], img.shape[1]
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return tuple(c for c in CHANNELS if getattr(self, c) is not None)
+
+
+@dataclass(frozen=True)
+class Truth:
+    """Ground truth per channel: ``boxes[channel][id]`` is ``(N, 4)``, NaN rows = no truth.
+
+    For a MOTChallenge ``gt.txt`` both channels share the same table (registered frames)
+    and ``visibility[id]`` holds the visibility column.
+    """
+
+    boxes: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)
+    visibility: dict[int, np.ndarray] = field(default_factory=dict)
+    files: dict[str, str] = field(default_factory=dict)
+    multi: bool = False
+
+    @property
+    def has_truth(self) -> bool:
+        return bool(self.boxes)
+
+    def primary_channel(self) -> str | None:
+        """Channel scored by default: visible when both have truth, else the one there is."""
+        if "visible" in self.boxes:
+            return "visible"
+        if "infrared" in self.boxes:
+            return "infrared"
+        return None
+
+    def primary(self) -> dict[int, np.ndarray]:
+        ch = self.primary_channel()
+        return self.boxes[ch] if ch else {}
+
+
+@dataclass(frozen=True)
+class IrNormalization:
+    """How raw IR frames become the 8-bit frames the trackers see."""
+
+    kind: str = "none"  # "none" (8-bit as is) or "percentile"
+    low: float = 0.0
+    high: float = 255.0
+
+    def apply(self, raw: np.ndarray) -> np.ndarray:
+        if raw.ndim == 3:
+            raw = cv2.cvtColor(raw, cv2.COLOR_BGR2GRAY) if raw.dtype == np.uint8 else raw[..., 0]
+        if self.kind == "none" and raw.dtype == np.uint8:
+            return raw
+        scale = 255.0 / max(self.high - self.low, 1e-9)
+        out = (raw.astype(np.float32) - np.float32(self.low)) * np.float32(scale)
+        return np.clip(out + 0.5, 0, 255).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class _Spec:
+    name: str
+    visible: str | None
+    infrared: str | None
+    gt: dict[str, tuple[str, str]]  # channel -> (file, form); channel "both" = shared
+    base: float = 0.0
+    sparse_every: int = 1
+
+
+_PAIR_LAYOUTS = (
+    _Spec("rgbt234", "visible", "infrared", {"visible": ("visible.txt", "xywh"), "infrared": ("infrared.txt", "xywh")}),
+    _Spec("gtot", "v", "i", {"visible": ("groundTruth_v.txt", "xyxy"), "infrared": ("groundTruth_i.txt", "xyxy")}),
+    _Spec("vot-rgbt", "color", "ir", {"both": ("groundtruth.txt", "xywh")}),
+    _Spec("vtuav", "rgb", "ir", {"visible": ("rgb.txt", "xyxy"), "infrared": ("ir.txt", "xyxy")}, sparse_every=10),
+)
+_ONE_CHANNEL_LAYOUTS = (
+    _Spec("otb", "img", "img", {"both": ("groundtruth_rect.txt", "xywh")}, base=1.0),
+    _Spec("mot", "img1", "img1", {}, base=1.0),
+    _Spec("vot", ".", ".", {"both": ("groundtruth.txt", "xywh")}),
+)
+LAYOUT_NAMES = (
+    "rgbt234/lasher (visible/ + infrared/)",
+    "gtot (v/ + i/)",
+    "vot-rgbt (color/ + ir/)",
+    "vtuav (rgb/ + ir/)",
+    "video pair (visible.<video> + infrared.<video>)",
+    "otb (img/)",
+    "mot (img1/)",
+    "vot (frames in the folder)",
+)
+
+
+class Sequence:
+    """A sequence folder opened for tracking. Frames stream lazily via :meth:`frames`.
+
+    Use :func:`open_sequence` to build one.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        layout: str,
+        sources: dict[str, FrameSource],
+        truth: Truth,
+        ir_norm: IrNormalization,
+        size: tuple[int, int],
+        ir_resize: tuple[int, int] | None,
+        init_file: Path | None,
+    ):
+        self.path = path
+        self.name = path.name
+        self.layout = layout
+        self.sources = sources
+        self.truth = truth
+        self.ir_norm = ir_norm
+        self.width, self.height = size
+        self.ir_resize = ir_resize  # original IR (W, H) when IR is resized to the visible size
+        self.init_file = init_file
+        self.n_frames = len(next(iter(sources.values())))
+
+    def __len__(self) -> int:
+        return self.n_frames
+
+    def __repr__(self) -> str:
+        return (
+            f"Sequence({self.name!r}, layout={self.layout!r}, channels={self.channels}, "
+            f"frames={self.n_frames}, size={self.width}x{self.height})"
+        )
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return tuple(c for c in CHANNELS if c in self.sources)
+
+    def frames(self, start: int = 1, stop: int | None = None) -> Iterator[FramePair]:
+        """Frame pairs ``start..stop`` (1-based, inclusive), decoded one at a time."""
+        stop = self.n_frames if stop is None else min(stop, self.n_frames)
+        iters = {c: s.iterate(start - 1) for c, s in self.sources.items()}
+        for index in range(start, stop + 1):
+            raw = {c: next(it) for c, it in iters.items()}
+            yield self._pair(index, raw)
+
+    def frame(self, index: int) -> FramePair:
+        """One frame pair by its 1-based number."""
+        if not 1 <= index <= self.n_frames:
+            raise IndexError(f"frame {index} outside 1..{self.n_frames}")
+        return self._pair(index, {c: s.read(index - 1) for c, s in self.sources.items()})
+
+    def _pair(self, index: int, raw: dict[str, RawFrame]) -> FramePair:
+        vis = raw.get("visible")
+        ir = raw.get("infrared")
+        visible = None
+        if vis is not None:
+            img = vis.image
+            if img.dtype != np.uint8:
+                img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
+            visible = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img
+            self._check_size(index, "visible", visible)
+        infrared = ir_raw = ir_enc = None
+        if ir is not None:
+            ir_raw = ir.image
+            infrared = self.ir_norm.apply(ir_raw)
+            if self.ir_resize is not None:  # the source bytes no longer match: the sink re-encodes
+                self._check_size(index, "infrared", infrared, self.ir_resize)
+                infrared = cv2.resize(infrared, (self.width, self.height), interpolation=cv2.INTER_LINEAR)
+            else:
+                self._check_size(index, "infrared", infrared)
+                ir_enc = ir.encoded  # None for 16-bit frames (frames.py)
+        return FramePair(
+            index=index,
+            visible=visible,
+            infrared=infrared,
+            infrared_raw=ir_raw,
+            visible_encoded=vis.encoded if vis is not None else None,
+            infrared_encoded=ir_enc,
+        )
+
+    def _check_size(self, index: int, channel: str, img: np.ndarray, expect: tuple[int, int] | None = None) -> None:
+        w, h = expect if expect is not None else (self.width, self.height)
+        if img.shape[1] != w or img.shape[0] != h:
+            raise InputError(
+                f"frame {index}: {channel} frame is {img.shape[1]}x{img.shape[0]}, "
+                f"expected {w}x{h} like the first frame"
+            )
+
+
+def _find_dir(root: Path, name: str) -> Path | None:
+    if name == ".":
+        return root
+    for cand in (root / name, root / name.upper(), root / name.capitalize()):
+        if cand.is_dir():
+            return cand
+    return None
+
+
+def _find_video(root: Path, stem: str) -> Path | None:
+    for p in sorted(root.iterdir()):
+        if p.is_file() and p.stem.lower() == stem and p.suffix.lower() in VIDEO_EXTENSIONS:
+            return p
+    return None
+
+
+def _images_or_error(folder: Path, channel: str) -> ImageListSource:
+    paths = list_images(folder)
+    if not paths:
+        raise InputError(f"empty sequence: no {channel} frames ({', '.join(IMAGE_EXTENSIONS)}) in {folder}")
+    return ImageListSource(paths)
+
+
+def _find_mot_gt(root: Path, frames_dir: Path | None) -> Path | None:
+    for cand in (root / "gt" / "gt.txt", root / "gt.txt"):
+        if cand.is_file():
+            return cand
+    if frames_dir is not None and frames_dir != root:
+        for cand in (frames_dir / "gt.txt",):
+            if cand.is_file():
+                return cand
+    return None
+
+
+def open_sequence(
+    path: str | Path,
+    *,
+    channel: str | None = None,
+    align: str = "none",
+    gt_base: float | None = None,
+) -> Sequence:
+    """Open a sequence folder of any layout design.md names.
+
+    Parameters
+    ----------
+    path : str or Path
+        The sequence folder.
+    channel : {"visible", "infrared"}, optional
+        In a one-channel folder, what its frames are (default: decided from the first
+        frame, grey = infrared). In a two-channel folder, keep only that channel.
+    align : {"none", "resize"}
+        ``resize`` scales infrared frames (and infrared truth) to the visible size when
+        the sizes differ; otherwise different sizes are an error.
+    gt_base : float, optional
+        Override of the layout's ground-truth coordinate base (0 or 1).
+
+    Raises
+    ------
+    InputError
+        Missing folder, unrecognised layout, no frames, unreadable first frame,
+        channels with different frame counts or sizes, malformed ground truth.
+    """
+    root = Path(path)
+    if not root.exists():
+        raise InputError(f"sequence folder not found: {root}")
+    if not root.is_dir():
+        raise InputError(f"not a folder: {root} (point dualtrack at a sequence folder)")
+    if channel not in (None, "visible", "infrared"):
+        raise InputError(f"--channel must be 'visible' or 'infrared'; got {channel!r}")
+    if align not in ("none", "resize"):
+        raise InputError(f"--align must be 'none' or 'resize'; got {align!r}")
+
+    spec: _Spec | None = None
+    sources: dict[str, FrameSource] = {}
+    frames_dir: Path | None = None
+    for s in _PAIR_LAYOUTS:
+        vd, idir = _find_dir(root, s.visible or ""), _find_dir(root, s.infrared or "")
+        if vd is not None and idir is not None:
+            spec = s
+            sources = {"visible": _images_or_error(vd, "visible"), "infrared": _images_or_error(idir, "infrared")}
+            frames_dir = vd
+            break
+    if spec is None:
+        vv, iv = _find_video(root, "visible"), _find_video(root, "infrared")
+        if vv is not None and iv is not None:
+            spec = _Spec("video-pair", None, None, {})
+            sources = {"visible": VideoSource(vv), "infrared": VideoSource(iv)}
+    if spec is None:
+        for s in _ONE_CHANNEL_LAYOUTS:
+            d = _find_dir(root, s.visible or "")
+            if d is not None and list_images(d):
+                spec, frames_dir = s, d
+                src = ImageListSource(list_images(d))
+                if channel is None:
+                    channel_found = "infrared" if is_grey(src.read(0).image) else "visible"
+                else:
+                    channel_found = channel
+                sources = {channel_found: src}
+                break
+    if spec is None:
+        if any(p.is_dir() for p in root.iterdir()) or not any(root.iterdir()):
+            found = ", ".join(sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())[:8]) or "nothing"
+            raise InputError(
+                f"unrecognised sequence layout in {root} (found {found}); looked for: " + "; ".join(LAYOUT_NAMES)
+            )
+        raise InputError(f"empty sequence: no frames in {root}")
+
+    if channel is not None and len(sources) == 2:
+        sources = {channel: sources[channel]}
+
+    counts = {c: len(s) for c, s in sources.items()}
+    if len(set(counts.values())) > 1:
+        v, i = (sources["visible"], sources["infrared"])
+        raise InputError(
+            f"channels have different frame counts: {counts['visible']} visible frames in "
+            f"{v.description} vs {counts['infrared']} infrared frames in {i.description}"
+        )
+    n = next(iter(counts.values()))
+    if n == 0:
+        raise InputError(f"empty sequence: no frames in {root}")
+
+    first = {c: s.read(0) for c, s in sources.items()}
+    sizes = {c: (f.image.shape[1], f.image.shape[0]) for c, f in first.items()}
+    ir_resize = None
+    if len(sizes) == 2 and sizes["visible"] != sizes["infrared"]:
+        if align != "resize":
+            (vw, vh), (iw, ih) = sizes["visible"], sizes["infrared"]
+            raise InputError(
+                f"channels have different frame sizes: visible {vw}x{vh} ({sources['visible'].description}) "
+                f"vs infrared {iw}x{ih} ({sources['infrared'].description}); pass --align resize to scale "
+                "infrared to the visible size"
+            )
+        ir_resize = sizes["infrared"]
+    size = sizes.get("visible", sizes.get("infrared"))
+    assert size is not None
+
+    ir_norm = IrNormalization()
+    if "infrared" in sources and first["infrared"].image.dtype != np.uint8:
+        ir_norm = _percentile_norm(sources["infrared"])
+
+    truth = _load_truth(root, spec, frames_dir, n, gt_base, sources)
+    if ir_resize is not None and "infrared" in truth.boxes and not truth.multi:
+        sx, sy = size[0] / ir_resize[0], size[1] / ir_resize[1]
+        truth.boxes["infrared"] = {k: v * np.array([sx, sy, sx, sy]) for k, v in truth.boxes["infrared"].items()}
+    init_file = root / "init.txt" if (root / "init.txt").is_file() else None
+    return Sequence(root, spec.name, sources, truth, ir_norm, size, ir_resize, init_file)
+
+
+def _percentile_norm(src: FrameSource, samples: int = 16) -> IrNormalization:
+    n = len(src)
+    idx = np.unique(np.linspace(0, n - 1, min(samples, n)).round().astype(int))
+    vals = []
+    for i in idx:
+        img = src.read(int(i)).image
+        vals.append(img[::4, ::4].ravel())
+    allv = np.concatenate(vals).astype(np.float64)
+    lo, hi = np.percentile(allv, [0.5, 99.5])
+    if hi <= lo:
+        hi = lo + 1.0
+    return IrNormalization("percentile", float(lo), float(hi))
+
+
+def _load_truth(
+    root: Path,
+    spec: _Spec,
+    frames_dir: Path | None,
+    n: int,
+    gt_base: float | None,
+    sources: dict[str, FrameSource],
+) -> Truth:
+    mot = _find_mot_gt(root, frames_dir)
+    if mot is not None:
+        mt: MotTruth = parse_mot_truth(mot, n, base=1.0 if gt_base is None else gt_base)
+        boxes = {c: mt.boxes for c in sources}
+        return Truth(boxes, mt.visibility, {c: str(mot) for c in sources}, multi=True)
+    base = spec.base if gt_base is None else gt_base
+    boxes: dict[str, dict[int, np.ndarray]] = {}
+    files: dict[str, str] = {}
+    gt = dict(spec.gt)
+    if spec.name == "video-pair":  # any single-target file the other layouts know
+        for s in _PAIR_LAYOUTS:
+            for ch, (fname, form) in s.gt.items():
+                if (root / fname).is_file():
+                    gt.setdefault(ch, (fname, form))
+        if (root / "groundtruth_rect.txt").is_file():
+            gt.setdefault("both", ("groundtruth_rect.txt", "xywh"))
+            base = 1.0 if gt_base is None else gt_base
+    for ch, (fname, form) in gt.items():
+        f = root / fname
+        if not f.is_file():
+            continue
+        arr = parse_box_file(f, form, base)
+        arr = expand_sparse(arr, n, spec.sparse_every) if spec.sparse_every > 1 else fit_length(arr, n)
+        targets = ("visible", "infrared") if ch == "both" else (ch,)
+        for c in targets:
+            if c in sources:
+                boxes[c] = {1: arr}
+                files[c] = str(f)
+    return Truth(boxes, {}, files, multi=False)

@@ -1,0 +1,244 @@
+"""Shared value types and the one geometry convention of dualtrack.
+
+Geometry convention (design.md, written down once here):
+
+* Images are numpy arrays indexed ``[row, col]`` = ``[y, x]``; visible frames are
+  ``(H, W, 3)`` uint8 **BGR** (OpenCV order), infrared frames ``(H, W)`` uint8 after
+  normalization (the raw array, possibly uint16, is kept beside it).
+* Geometry is in continuous pixel coordinates ``(x, y)`` with ``x`` the column: the
+  top-left corner of the top-left pixel is ``(0, 0)``, so the centre of pixel
+  ``[r, c]`` is ``(c + 0.5, r + 0.5)``.
+* Boxes are :class:`BBox` ``(x, y, w, h)`` floats in px; the box spans
+  ``[x, x + w) x [y, y + h)`` and its centre is ``(x + w/2, y + h/2)``.
+* Contours are ``(K, 2)`` float arrays of ``(x, y)`` px.
+* Frame numbers start at 1 everywhere (files, results, the .rrd ``frame`` timeline).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatImage = NDArray[np.float32]
+"""(H, W) float32 image."""
+GrayImage = NDArray[np.uint8]
+"""(H, W) uint8 image."""
+BgrImage = NDArray[np.uint8]
+"""(H, W, 3) uint8 image in OpenCV's BGR order."""
+Points = NDArray[np.float64]
+"""(K, 2) float array of (x, y) px."""
+
+
+@dataclass(frozen=True, slots=True)
+class BBox:
+    """Axis-aligned box ``(x, y, w, h)`` in continuous 0-based px (see module doc)."""
+
+    x: float
+    y: float
+    w: float
+    h: float
+
+    @classmethod
+    def from_center(cls, cx: float, cy: float, w: float, h: float) -> BBox:
+        return cls(cx - w / 2.0, cy - h / 2.0, w, h)
+
+    @classmethod
+    def from_corners(cls, x1: float, y1: float, x2: float, y2: float) -> BBox:
+        return cls(x1, y1, x2 - x1, y2 - y1)
+
+    @property
+    def cx(self) -> float:
+        return self.x + self.w / 2.0
+
+    @property
+    def cy(self) -> float:
+        return self.y + self.h / 2.0
+
+    @property
+    def center(self) -> tuple[float, float]:
+        return (self.cx, self.cy)
+
+    @property
+    def area(self) -> float:
+        return max(self.w, 0.0) * max(self.h, 0.0)
+
+    @property
+    def x2(self) -> float:
+        return self.x + self.w
+
+    @property
+    def y2(self) -> float:
+        return self.y + self.h
+
+    def is_valid(self) -> bool:
+        """True for a finite box with positive width and height."""
+        return (
+            all(math.isfinite(v) for v in (self.x, self.y, self.w, self.h))
+            and self.w > 0
+            and self.h > 0
+        )
+
+    def as_tuple(self) -> tuple[float, float, float, float]:
+        return (self.x, self.y, self.w, self.h)
+
+    def shifted(self, dx: float, dy: float) -> BBox:
+        return BBox(self.x + dx, self.y + dy, self.w, self.h)
+
+    def scaled(self, factor: float) -> BBox:
+        """Same centre, width and height multiplied by ``factor``."""
+        return BBox.from_center(self.cx, self.cy, self.w * factor, self.h * factor)
+
+    def with_center(self, cx: float, cy: float) -> BBox:
+        return BBox.from_center(cx, cy, self.w, self.h)
+
+    def intersect(self, other: BBox) -> BBox:
+        x1, y1 = max(self.x, other.x), max(self.y, other.y)
+        x2, y2 = min(self.x2, other.x2), min(self.y2, other.y2)
+        return BBox(x1, y1, max(x2 - x1, 0.0), max(y2 - y1, 0.0))
+
+    def iou(self, other: BBox) -> float:
+        inter = self.intersect(other).area
+        union = self.area + other.area - inter
+        return inter / union if union > 0 else 0.0
+
+    def clip(self, width: int, height: int) -> BBox:
+        """The part of the box inside a ``width`` x ``height`` frame (may be empty)."""
+        return self.intersect(BBox(0.0, 0.0, float(width), float(height)))
+
+    def to_cv(self, width: int | None = None, height: int | None = None) -> tuple[int, int, int, int]:
+        """Integer ``(x, y, w, h)`` for OpenCV calls (rounded, at least 1 px, inside the frame)."""
+        x, y = round(self.x), round(self.y)
+        w, h = max(round(self.w), 1), max(round(self.h), 1)
+        if width is not None and height is not None:
+            x = min(max(x, 0), width - 1)
+            y = min(max(y, 0), height - 1)
+            w = min(w, width - x)
+            h = min(h, height - y)
+        return (int(x), int(y), int(w), int(h))
+
+    def __str__(self) -> str:
+        return f"({self.x:.1f}, {self.y:.1f}, {self.w:.1f}, {self.h:.1f})"
+
+
+class TargetStatus(enum.StrEnum):
+    """Per-target status; the values are the names design.md fixes."""
+
+    TENTATIVE = "tentative"
+    TRACKING = "tracking"
+    OCCLUDED_PARTIAL = "occluded-partial"
+    OCCLUDED_SEVERE = "occluded-severe"
+    MERGED = "merged"
+    LOST = "lost"
+
+    @property
+    def is_reported(self) -> bool:
+        """Whether tracks.csv carries a row for a target in this status."""
+        return self not in (TargetStatus.TENTATIVE, TargetStatus.LOST)
+
+    @property
+    def is_occluded(self) -> bool:
+        return self in (
+            TargetStatus.OCCLUDED_PARTIAL,
+            TargetStatus.OCCLUDED_SEVERE,
+            TargetStatus.MERGED,
+        )
+
+
+class EventKind(enum.StrEnum):
+    """Kinds of events written to the .rrd event log."""
+
+    START = "start"
+    MERGE = "merge"
+    SPLIT = "split"
+    OCCLUSION_START = "occlusion-start"
+    OCCLUSION_END = "occlusion-end"
+    LOST = "lost"
+    REACQUIRED = "re-acquired"
+    MODEL_FROZEN = "model-frozen"
+    BIRTH = "birth"
+    CONFIRMED = "confirmed"
+    WARNING = "warning"
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """Something that happened at a frame (merge, split, lost, ...)."""
+
+    kind: EventKind
+    text: str
+    target_ids: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class InitTarget:
+    """An initial target: its id and its box in the first frame."""
+
+    id: int
+    box: BBox
+
+
+@dataclass(frozen=True)
+class TargetResult:
+    """What a tracker reports for one target at one frame.
+
+    Parameters
+    ----------
+    id : int
+        Track id (1..N for initialised targets).
+    box : BBox
+        Estimated box in frame px.
+    status : TargetStatus
+        Lifecycle status.
+    source : str
+        The stage that produced the box (``meanshift``, ``levelset``, ``kalman``,
+        ``camshift``, ``opencv-mil``, ``merge-eq11``, ...).
+    iterations : Mapping[str, int]
+        Iterations spent per iterative stage this frame.
+    rho : float
+        Bhattacharyya coefficient of the appearance match (NaN when not computed).
+    model_update : str
+        The model-update decision and its reason, ``decision:reason``.
+    confidence : float
+        In [0, 1]; lower when occluded. Written as ``conf`` in tracks.csv.
+    contour : list of Points
+        Contours found by a level-set stage (frame px), possibly empty.
+    diagnostics : Mapping[str, float]
+        Named scalar diagnostics (``d``, ``area_px2``, prediction, ...).
+    """
+
+    id: int
+    box: BBox
+    status: TargetStatus
+    source: str
+    iterations: Mapping[str, int] = field(default_factory=dict)
+    rho: float = math.nan
+    model_update: str = "none"
+    confidence: float = 1.0
+    contour: tuple[Points, ...] = ()
+    diagnostics: Mapping[str, float] = field(default_factory=dict)
+
+    def replace(self, **changes: object) -> TargetResult:
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """Everything a tracker reports for one frame."""
+
+    frame: int
+    targets: tuple[TargetResult, ...]
+    events: tuple[Event, ...] = ()
+    stage_seconds: Mapping[str, float] = field(default_factory=dict)
+    diagnostics: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def target(self, target_id: int) -> TargetResult | None:
+        for t in self.targets:
+            if t.id == target_id:
+                return t
+        return None
