@@ -1,0 +1,1 @@
+"""Pure stage functions over arrays (histograms, mean shift, level sets, Kalman, association)."""

@@ -1,0 +1,221 @@
+"""Kernel-weighted colour / intensity histograms and the Bhattacharyya coefficient.
+
+Eq. 1-3 of the dual-channel paper (after Comaniciu, Ramesh and Meer 2003). The target
+is the ellipse inscribed in its box, with half-axes ``(hx, hy) = (w/2, h/2)``; pixel
+``i`` has normalized radius ``r_i^2 = ((x_i - cx)/hx)^2 + ((y_i - cy)/hy)^2`` and
+Epanechnikov weight ``k = 1 - r^2`` for ``r^2 < 1`` (constants cancel after
+normalization). Pixel centres are at ``(c + 0.5, r + 0.5)`` (see ``pipeline.types``).
+
+Histograms are built from a *bin-index image* computed once per frame on a region of
+interest, so the 3-D ``cv2.calcBackProject`` bug (algorithms.md §7.1) never arises:
+back-projection is a numpy lookup ``hist[bins]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from pipeline.types import BBox
+
+
+@dataclass(frozen=True)
+class HistogramConfig:
+    """Binning of the appearance histograms.
+
+    Parameters
+    ----------
+    hue_bins : int
+        Hue bins of the HSV histogram (OpenCV hue 0..179), in [2, 180]; default 16
+        (the paper's 16x4x4). Increasing it separates similar colours but makes the
+        model sparser and more sensitive to illumination.
+    saturation_bins : int
+        Saturation bins, in [1, 256]; default 4.
+    value_bins : int
+        Value (brightness) bins, in [1, 256]; default 4. Increasing it makes the
+        model more sensitive to illumination change.
+    intensity_bins : int
+        Bins of the infrared intensity histogram used in IR-only modes, in [2, 256];
+        default 32. Increasing it sharpens the model but makes it noisier.
+    """
+
+    hue_bins: int = 16
+    saturation_bins: int = 4
+    value_bins: int = 4
+    intensity_bins: int = 32
+
+    def __post_init__(self) -> None:
+        for name, lo, hi in (
+            ("hue_bins", 2, 180),
+            ("saturation_bins", 1, 256),
+            ("value_bins", 1, 256),
+            ("intensity_bins", 2, 256),
+        ):
+            v = getattr(self, name)
+            if not isinstance(v, int) or not lo <= v <= hi:
+                raise ValueError(f"histogram.{name} must be an integer in [{lo}, {hi}]; got {v!r}")
+
+    @property
+    def hsv_bins(self) -> int:
+        """Number of bins m of the HSV histogram."""
+        return self.hue_bins * self.saturation_bins * self.value_bins
+
+
+def _luts(cfg: HistogramConfig) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.int32]]:
+    v = np.arange(256, dtype=np.int32)
+    sv = cfg.saturation_bins * cfg.value_bins
+    lut_h = np.minimum(v * cfg.hue_bins // 180, cfg.hue_bins - 1) * sv
+    lut_s = (v * cfg.saturation_bins // 256) * cfg.value_bins
+    lut_v = v * cfg.value_bins // 256
+    return lut_h.astype(np.int32), lut_s.astype(np.int32), lut_v.astype(np.int32)
+
+
+_LUT_CACHE: dict[HistogramConfig, tuple[NDArray[np.int32], ...]] = {}
+
+
+def hsv_bin_image(bgr: NDArray[np.uint8], cfg: HistogramConfig) -> NDArray[np.int32]:
+    """Bin index ``u = h*S*V + s*V + v`` of every pixel of a BGR image.
+
+    Parameters
+    ----------
+    bgr : (H, W, 3) uint8
+        Visible image (or a crop of it) in OpenCV's BGR order.
+    cfg : HistogramConfig
+        Binning.
+
+    Returns
+    -------
+    (H, W) int32 array of bin indices in ``[0, cfg.hsv_bins)``.
+    """
+    if bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.uint8:
+        raise ValueError(f"bgr must be (H, W, 3) uint8; got {bgr.shape} {bgr.dtype}")
+    luts = _LUT_CACHE.get(cfg)
+    if luts is None:
+        luts = _LUT_CACHE.setdefault(cfg, _luts(cfg))
+    hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
+    return luts[0][hsv[..., 0]] + luts[1][hsv[..., 1]] + luts[2][hsv[..., 2]]
+
+
+def intensity_bin_image(gray: NDArray[np.uint8], cfg: HistogramConfig) -> NDArray[np.int32]:
+    """Bin index ``floor(I * bins / 256)`` of every pixel of an 8-bit grey image."""
+    if gray.ndim != 2 or gray.dtype != np.uint8:
+        raise ValueError(f"gray must be (H, W) uint8; got {gray.shape} {gray.dtype}")
+    return (gray.astype(np.int32) * cfg.intensity_bins) >> 8
+
+
+@dataclass(frozen=True)
+class KernelWindow:
+    """Pixels of the kernel support of an ellipse inside an image.
+
+    ``rows``/``cols`` index the pixels with ``r^2 < 1``; ``k`` is their Epanechnikov
+    weight; ``xs``/``ys`` their centre coordinates in the image's px; ``mass_fraction``
+    the share of the full ellipse's kernel mass that lies inside the image.
+    """
+
+    rows: NDArray[np.intp]
+    cols: NDArray[np.intp]
+    xs: NDArray[np.float64]
+    ys: NDArray[np.float64]
+    k: NDArray[np.float64]
+    mass_fraction: float
+
+
+def kernel_window(shape: tuple[int, ...], cx: float, cy: float, hx: float, hy: float) -> KernelWindow:
+    """Kernel support of the ellipse centred at ``(cx, cy)`` with half-axes ``(hx, hy)``.
+
+    Coordinates are px of the image whose ``shape`` is given (pixel centres at +0.5).
+    Pixels outside the image are dropped; ``mass_fraction`` tells how much is left.
+    """
+    if hx <= 0 or hy <= 0:
+        raise ValueError(f"half-axes must be positive; got ({hx}, {hy})")
+    height, width = shape[0], shape[1]
+    c0 = max(int(np.floor(cx - hx)), 0)
+    c1 = min(int(np.ceil(cx + hx)), width)
+    r0 = max(int(np.floor(cy - hy)), 0)
+    r1 = min(int(np.ceil(cy + hy)), height)
+    full_mass = np.pi * hx * hy / 2.0  # integral of (1 - r^2) over the ellipse
+    if c1 <= c0 or r1 <= r0:
+        empty_i = np.zeros(0, np.intp)
+        empty_f = np.zeros(0, np.float64)
+        return KernelWindow(empty_i, empty_i, empty_f, empty_f, empty_f, 0.0)
+    xs = np.arange(c0, c1, dtype=np.float64) + 0.5
+    ys = np.arange(r0, r1, dtype=np.float64) + 0.5
+    dx2 = ((xs - cx) / hx) ** 2
+    dy2 = ((ys - cy) / hy) ** 2
+    r2 = dy2[:, None] + dx2[None, :]
+    inside = r2 < 1.0
+    rr, cc = np.nonzero(inside)
+    k = 1.0 - r2[rr, cc]
+    return KernelWindow(
+        rows=rr + r0,
+        cols=cc + c0,
+        xs=xs[cc],
+        ys=ys[rr],
+        k=k,
+        mass_fraction=float(min(k.sum() / full_mass, 1.0)) if full_mass > 0 else 0.0,
+    )
+
+
+def window_histogram(bins: NDArray[np.int32], win: KernelWindow, n_bins: int) -> NDArray[np.float64]:
+    """Normalized kernel histogram (eq. 1-2) of the pixels of ``win``; zeros if empty."""
+    if win.k.size == 0:
+        return np.zeros(n_bins, np.float64)
+    h = np.bincount(bins[win.rows, win.cols], weights=win.k, minlength=n_bins)
+    s = h.sum()
+    return h / s if s > 0 else h
+
+
+def kernel_histogram(bins: NDArray[np.int32], box: BBox, n_bins: int) -> NDArray[np.float64]:
+    """Normalized Epanechnikov-weighted histogram of the ellipse inscribed in ``box``.
+
+    Parameters
+    ----------
+    bins : (H, W) int32
+        Bin-index image (``hsv_bin_image`` or ``intensity_bin_image``).
+    box : BBox
+        Box in the px of ``bins``.
+    n_bins : int
+        Number of bins m.
+
+    Returns
+    -------
+    (m,) float64 summing to 1 (all zeros when the box has no pixel in the image).
+    """
+    win = kernel_window(bins.shape, box.cx, box.cy, box.w / 2.0, box.h / 2.0)
+    return window_histogram(bins, win, n_bins)
+
+
+def bhattacharyya(p: NDArray[np.float64], q: NDArray[np.float64]) -> float:
+    """Bhattacharyya coefficient ``rho = sum_u sqrt(p_u q_u)`` (eq. 3), in [0, 1]."""
+    if p.shape != q.shape:
+        raise ValueError(f"histograms must have the same shape; got {p.shape} vs {q.shape}")
+    return float(np.sqrt(p * q).sum())
+
+
+def bhattacharyya_distance(rho: float) -> float:
+    """Distance ``d = sqrt(1 - rho)`` (what ``cv2.compareHist(..., HISTCMP_BHATTACHARYYA)`` gives)."""
+    return float(np.sqrt(max(1.0 - rho, 0.0)))
+
+
+def appearance_bins(image: np.ndarray, cfg: HistogramConfig) -> tuple[NDArray[np.int32], int]:
+    """Bin-index image and bin count for a visible (HSV) or infrared (intensity) image."""
+    if image.ndim == 3:
+        return hsv_bin_image(image, cfg), cfg.hsv_bins
+    return intensity_bin_image(image, cfg), cfg.intensity_bins
+
+
+def search_roi(box: BBox, margin: float, width: int, height: int) -> tuple[int, int, int, int]:
+    """Integer ``(x0, y0, x1, y1)`` of ``box`` grown by ``margin`` box sizes per side, clipped.
+
+    Never empty: at least one pixel inside the frame.
+    """
+    x0 = int(np.floor(box.x - margin * box.w))
+    y0 = int(np.floor(box.y - margin * box.h))
+    x1 = int(np.ceil(box.x2 + margin * box.w))
+    y1 = int(np.ceil(box.y2 + margin * box.h))
+    x0, y0 = min(max(x0, 0), width - 1), min(max(y0, 0), height - 1)
+    x1, y1 = max(min(x1, width), x0 + 1), max(min(y1, height), y0 + 1)
+    return x0, y0, x1, y1

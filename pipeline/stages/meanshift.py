@@ -1,0 +1,209 @@
+"""Kernel mean shift localisation (eq. 2-4 of the dual-channel paper; Comaniciu et al. 2003).
+
+With the Epanechnikov profile, ``g = -k'`` is constant on the support, so one step is
+the weighted centroid ``y1 = sum(w_i x_i) / sum(w_i)`` of the pixels with ``r^2 < 1``
+around ``y0``, ``w_i = sqrt(q_u / p_u(y0))`` for ``u = b(x_i)`` (eq. 4). Steps are
+halved while the Bhattacharyya coefficient drops (Comaniciu's step 5) and iteration
+stops when the move is below ``epsilon_px`` (sub-pixel) or after ``max_iterations``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pipeline.stages.histogram import KernelWindow, bhattacharyya, kernel_window, window_histogram
+
+
+@dataclass(frozen=True)
+class MeanShiftConfig:
+    """Mean-shift iteration and scale search.
+
+    Parameters
+    ----------
+    max_iterations : int
+        Iteration cap per localisation, >= 1; default 20. Increasing it lets the window
+        travel further per frame at a higher worst-case cost.
+    epsilon_px : float
+        Stop when the window moves less than this, px, in (0, 5]; default 0.5
+        (sub-pixel). Decreasing it refines the position at the cost of iterations.
+    max_halvings : int
+        Step-halving attempts per iteration when rho drops, >= 0; default 6.
+    scale_step : float
+        Relative size change tried by the scale search (the paper's comparison
+        method uses +-10 %), in [0, 0.5]; default 0.1. 0 disables the search.
+    scale_rate : float
+        Blend rate of the best scale into the current one, ``h = r*h_opt + (1-r)*h``,
+        in [0, 1]; default 0.1. Increasing it follows size changes faster and lets
+        clutter shrink the window sooner.
+    min_mass_fraction : float
+        Share of the kernel mass that must lie inside the frame for the match to be
+        trusted, in [0, 1]; default 0.5.
+    search_margin : float
+        Half-size of the region examined around the window, in box sizes, in [0.5, 5];
+        default 1.5. Increasing it tolerates larger motion per frame at a cost that
+        grows with the area examined.
+    """
+
+    max_iterations: int = 20
+    epsilon_px: float = 0.5
+    max_halvings: int = 6
+    scale_step: float = 0.1
+    scale_rate: float = 0.1
+    min_mass_fraction: float = 0.5
+    search_margin: float = 1.5
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.max_iterations, int) or self.max_iterations < 1:
+            raise ValueError(f"meanshift.max_iterations must be an integer >= 1; got {self.max_iterations!r}")
+        if not 0 < self.epsilon_px <= 5:
+            raise ValueError(f"meanshift.epsilon_px must be in (0, 5] px; got {self.epsilon_px!r}")
+        if not isinstance(self.max_halvings, int) or self.max_halvings < 0:
+            raise ValueError(f"meanshift.max_halvings must be an integer >= 0; got {self.max_halvings!r}")
+        if not 0 <= self.scale_step <= 0.5:
+            raise ValueError(f"meanshift.scale_step must be in [0, 0.5]; got {self.scale_step!r}")
+        if not 0 <= self.scale_rate <= 1:
+            raise ValueError(f"meanshift.scale_rate must be in [0, 1]; got {self.scale_rate!r}")
+        if not 0 <= self.min_mass_fraction <= 1:
+            raise ValueError(f"meanshift.min_mass_fraction must be in [0, 1]; got {self.min_mass_fraction!r}")
+        if not 0.5 <= self.search_margin <= 5:
+            raise ValueError(f"meanshift.search_margin must be in [0.5, 5]; got {self.search_margin!r}")
+
+
+@dataclass(frozen=True)
+class MeanShiftIter:
+    """State passed to ``iter_callback`` after each iteration."""
+
+    iteration: int
+    center: tuple[float, float]
+    rho: float
+
+
+@dataclass(frozen=True)
+class MeanShiftResult:
+    """Outcome of one mean-shift localisation.
+
+    ``center`` is in the px of the bin image passed in. ``converged`` is False when the
+    iteration cap was hit; ``no_support`` when no pixel of the window carries a model
+    colour (sum of weights zero), in which case ``center`` is the start point.
+    """
+
+    center: tuple[float, float]
+    rho: float
+    p: NDArray[np.float64]
+    iterations: int
+    converged: bool
+    halvings: int
+    mass_fraction: float
+    no_support: bool
+
+
+def _window(bins: NDArray[np.int32], c: tuple[float, float], half: tuple[float, float]) -> KernelWindow:
+    return kernel_window(bins.shape, c[0], c[1], half[0], half[1])
+
+
+def mean_shift(
+    bins: NDArray[np.int32],
+    q: NDArray[np.float64],
+    start: tuple[float, float],
+    half_size: tuple[float, float],
+    cfg: MeanShiftConfig,
+    iter_callback: Callable[[MeanShiftIter], None] | None = None,
+) -> MeanShiftResult:
+    """Locate the window maximising the Bhattacharyya coefficient with the model ``q``.
+
+    Parameters
+    ----------
+    bins : (H, W) int32
+        Bin-index image of the search region.
+    q : (m,) float64
+        Target model, normalized.
+    start : (x, y)
+        Start centre y0 in the px of ``bins``.
+    half_size : (hx, hy)
+        Kernel half-axes, px (the box's w/2, h/2).
+    cfg : MeanShiftConfig
+        Iteration settings.
+    iter_callback : callable, optional
+        Called with a :class:`MeanShiftIter` after every iteration.
+
+    Returns
+    -------
+    MeanShiftResult
+    """
+    if bins.ndim != 2:
+        raise ValueError(f"bins must be 2-D; got shape {bins.shape}")
+    m = q.shape[0]
+    y0 = (float(start[0]), float(start[1]))
+    win0 = _window(bins, y0, half_size)
+    p0 = window_histogram(bins, win0, m)
+    rho0 = bhattacharyya(p0, q)
+    halvings = 0
+    eps2 = cfg.epsilon_px**2
+    for it in range(1, cfg.max_iterations + 1):
+        if win0.k.size == 0:
+            return MeanShiftResult(y0, rho0, p0, it - 1, False, halvings, 0.0, True)
+        ratio = np.zeros(m, np.float64)
+        nz = p0 > 0
+        ratio[nz] = np.sqrt(q[nz] / p0[nz])
+        w = ratio[bins[win0.rows, win0.cols]]
+        ws = w.sum()
+        if ws <= 0:
+            return MeanShiftResult(y0, rho0, p0, it - 1, False, halvings, win0.mass_fraction, True)
+        y1 = (float(np.dot(w, win0.xs) / ws), float(np.dot(w, win0.ys) / ws))
+        win1 = _window(bins, y1, half_size)
+        p1 = window_histogram(bins, win1, m)
+        rho1 = bhattacharyya(p1, q)
+        n_half = 0
+        while rho1 < rho0 and n_half < cfg.max_halvings:
+            if (y1[0] - y0[0]) ** 2 + (y1[1] - y0[1]) ** 2 < eps2:
+                break
+            y1 = (0.5 * (y0[0] + y1[0]), 0.5 * (y0[1] + y1[1]))
+            win1 = _window(bins, y1, half_size)
+            p1 = window_histogram(bins, win1, m)
+            rho1 = bhattacharyya(p1, q)
+            n_half += 1
+        halvings += n_half
+        moved2 = (y1[0] - y0[0]) ** 2 + (y1[1] - y0[1]) ** 2
+        y0, win0, p0, rho0 = y1, win1, p1, rho1
+        if iter_callback is not None:
+            iter_callback(MeanShiftIter(it, y0, rho0))
+        if moved2 < eps2:
+            return MeanShiftResult(y0, rho0, p0, it, True, halvings, win0.mass_fraction, False)
+    return MeanShiftResult(y0, rho0, p0, cfg.max_iterations, False, halvings, win0.mass_fraction, False)
+
+
+@dataclass(frozen=True)
+class ScaleSearchResult:
+    """Mean shift run at the current size and at ``1 +- scale_step`` of it."""
+
+    best: MeanShiftResult
+    best_factor: float
+    iterations: int
+
+
+def mean_shift_scale_search(
+    bins: NDArray[np.int32],
+    q: NDArray[np.float64],
+    start: tuple[float, float],
+    half_size: tuple[float, float],
+    cfg: MeanShiftConfig,
+) -> ScaleSearchResult:
+    """Comaniciu's scale adaptation: localise with h, (1+s)h and (1-s)h, keep the best rho.
+
+    The caller blends the winning factor in with ``cfg.scale_rate``.
+    """
+    factors = (1.0,) if cfg.scale_step == 0 else (1.0, 1.0 + cfg.scale_step, 1.0 - cfg.scale_step)
+    best: MeanShiftResult | None = None
+    best_f = 1.0
+    total = 0
+    for f in factors:
+        r = mean_shift(bins, q, start, (half_size[0] * f, half_size[1] * f), cfg)
+        total += r.iterations
+        if best is None or (not r.no_support and r.rho > best.rho):
+            best, best_f = r, f
+    assert best is not None  # factors is never empty
+    return ScaleSearchResult(best, best_f, total)

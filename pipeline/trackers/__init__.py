@@ -1,0 +1,44 @@
+"""Tracker engines and their registry (``--tracker NAME``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from pipeline.errors import InputError
+from pipeline.trackers import meanshift as _meanshift
+from pipeline.trackers.base import Engine, FunctionalEngine
+from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
+
+_FACTORIES: dict[str, Callable[[object], Engine]] = {
+    "meanshift": lambda cfg: FunctionalEngine("meanshift", _meanshift.init, _meanshift.step, cfg),
+    "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),  # type: ignore[attr-defined]
+    "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),  # type: ignore[attr-defined]
+    "csrt": lambda cfg: OpenCVEngine("csrt", cfg.opencv),  # type: ignore[attr-defined]
+    "kcf": lambda cfg: OpenCVEngine("kcf", cfg.opencv),  # type: ignore[attr-defined]
+}
+PEERS = ("camshift", "mil", "csrt", "kcf")
+DEFAULT_TRACKER = "meanshift"
+
+
+def tracker_names() -> list[str]:
+    return list(_FACTORIES)
+
+
+def available_trackers() -> list[str]:
+    """Trackers that can run with the installed OpenCV."""
+    return [n for n in _FACTORIES if n not in ("csrt", "kcf") or opencv_tracker_available(n)]
+
+
+def register(name: str, factory: Callable[[object], Engine]) -> None:
+    _FACTORIES[name] = factory
+
+
+def make_tracker(name: str, cfg: object) -> Engine:
+    """Build the engine ``name`` with the resolved ``PipelineConfig``."""
+    factory = _FACTORIES.get(name)
+    if factory is None:
+        raise InputError(f"unknown tracker {name!r}; available: {', '.join(_FACTORIES)}")
+    return factory(cfg)
+
+
+__all__ = ["DEFAULT_TRACKER", "PEERS", "Engine", "available_trackers", "make_tracker", "tracker_names"]
