@@ -1,0 +1,141 @@
+"""Evaluation against ground truth (``dualtrack evaluate`` and the end of every ``track`` run).
+
+:func:`evaluate` returns the object ``evaluate --json`` prints (design.md):
+
+* default protocol: top-level ``p5``, ``p20``, ``auc``, ``mean_error_px``, ``npr`` (means
+  over targets), scored against the visible truth when both channels have truth, else the
+  one truth there is; ``mpr`` and ``msr`` when both channels have truth; with several
+  targets also ``mota``, ``motp``, ``idf1``, ``id_switches``, ``purity``, ``hota``;
+  ``targets``: ``{"<id>": same per-target keys}``;
+* ``protocol="gtot" | "rgbt234" | "lasher"``: the toolkit's own keys and rules
+  (``pipeline.eval.protocols``), per target and averaged.
+
+Track ids are scored against the truth id they carry when every track id is a truth id
+(initialised from the truth or by ``--init`` on a single target); otherwise (automatic
+detection) each truth id is scored against the track that the global IDF1 assignment
+gives it.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.eval import mot, protocols
+from pipeline.eval.single import center_errors, ious, precision_curve, single_target_metrics, success_curve
+from pipeline.io.results import TrackTable, read_tracks
+from pipeline.io.sequence import Truth, open_sequence
+
+SINGLE_KEYS = ("p5", "p20", "auc", "mean_error_px", "npr", "mpr", "msr")
+
+
+def _mean(values: list[float]) -> float:
+    v = [x for x in values if x is not None and not math.isnan(x)]
+    return float(np.mean(v)) if v else float("nan")
+
+
+def track_for_truth(truth_ids: list[int], tracks: TrackTable, mapping: dict[int, int]) -> dict[int, int | None]:
+    """Which track id is scored against each truth id (see the module doc)."""
+    if tracks.boxes and set(tracks.boxes) <= set(truth_ids):
+        return {g: (g if g in tracks.boxes else None) for g in truth_ids}
+    if len(truth_ids) == 1 and len(tracks.boxes) == 1 and not mapping:
+        return {truth_ids[0]: next(iter(tracks.boxes))}
+    return {g: mapping.get(g) for g in truth_ids}
+
+
+def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "default") -> dict[str, object]:
+    """Score ``tracks`` against ``truth`` (see the module doc for the keys)."""
+    if protocol not in protocols.PROTOCOLS:
+        raise ValueError(f"protocol must be one of {protocols.PROTOCOLS}; got {protocol!r}")
+    ch = truth.primary_channel()
+    if ch is None:
+        raise ValueError("the sequence has no ground truth")
+    gt = truth.boxes[ch]
+    other_ch = "infrared" if ch == "visible" else "visible"
+    gt_other = truth.boxes.get(other_ch) if not truth.multi else None
+    ids = list(gt)
+    multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
+    id_info = mot.idf1(gt, tracks.boxes) if tracks.boxes else {"idf1": 0.0, "mapping": {}}
+    which = track_for_truth(ids, tracks, id_info["mapping"])  # type: ignore[arg-type]
+    empty = np.full((n_frames, 4), np.nan)
+
+    per: dict[str, dict[str, float]] = {}
+    for g in ids:
+        t = which[g]
+        pred = tracks.boxes[t] if t is not None else empty
+        if protocol == "default":
+            per[str(g)] = single_target_metrics(pred, gt[g], gt_other[g] if gt_other and g in gt_other else None)
+        else:
+            gv = truth.boxes.get("visible", {}).get(g)
+            gi = truth.boxes.get("infrared", {}).get(g)
+            per[str(g)] = protocols.PROTOCOL_FUNCTIONS[protocol](pred, gv, gi)
+        if t is not None and t != g:
+            per[str(g)]["track_id"] = t
+
+    out: dict[str, object] = {"protocol": protocol, "channel": ch}
+    keys = [k for k in next(iter(per.values())) if k not in ("frames", "frames_without_output", "track_id")]
+    if protocol == "gtot":
+        pooled = [protocols.gtot_counts(tracks.boxes[which[g]] if which[g] is not None else empty,
+                                        truth.boxes.get("visible", {}).get(g), truth.boxes.get("infrared", {}).get(g))
+                  for g in ids]
+        frames = sum(p["frames"] for p in pooled)  # type: ignore[misc]
+        pc = np.sum([p["precision_counts"] for p in pooled], axis=0).tolist()
+        sc = np.sum([p["success_counts"] for p in pooled], axis=0).tolist()
+        out.update({k: v for k, v in protocols.gtot_from_counts(frames, pc, sc).items() if k != "frames"})
+    else:
+        for k in keys:
+            out[k] = _mean([per[str(g)].get(k, float("nan")) for g in ids])
+    out["frames"] = int(sum(p.get("frames", 0) for p in per.values()))
+    if multi:
+        fm = mot.match_frames(gt, tracks.boxes, n_frames)
+        out.update({k: v for k, v in mot.clear_mot(fm).items()})
+        out["idf1"] = id_info["idf1"]
+        out["purity"] = mot.purity_matrix(gt, tracks.boxes, fm)
+        out.update(mot.hota(gt, tracks.boxes, n_frames))
+    out["targets"] = per
+    return _clean(out)  # type: ignore[return-value]
+
+
+def _clean(x: object) -> object:
+    """NaN/inf become None so the result is strict JSON."""
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_clean(v) for v in x]
+    if isinstance(x, float | np.floating):
+        return float(x) if math.isfinite(float(x)) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = "default", **open_kw: object) -> dict[str, object]:
+    """``dualtrack evaluate SEQ_DIR TRACKS_CSV``: open the sequence, read the results, score."""
+    seq = open_sequence(seq_dir, **open_kw)  # type: ignore[arg-type]
+    if not seq.truth.has_truth:
+        from pipeline.errors import InputError
+
+        raise InputError(f"{seq.path} has no ground truth to evaluate against")
+    tracks = read_tracks(tracks_csv, seq.n_frames)
+    return evaluate(seq.truth, tracks, seq.n_frames, protocol)
+
+
+def curves(truth: Truth, tracks: TrackTable, n_frames: int) -> dict[int, dict[str, np.ndarray]]:
+    """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,) for plots and the .rrd."""
+    ch = truth.primary_channel()
+    assert ch is not None
+    gt = truth.boxes[ch]
+    id_info = mot.idf1(gt, tracks.boxes) if tracks.boxes else {"mapping": {}}
+    which = track_for_truth(list(gt), tracks, id_info["mapping"])  # type: ignore[arg-type]
+    out = {}
+    for g, boxes in gt.items():
+        t = which[g]
+        pred = tracks.boxes[t] if t is not None else np.full((n_frames, 4), np.nan)
+        err = center_errors(pred, boxes)
+        out[g] = {"errors": err, "precision": precision_curve(err), "success": success_curve(ious(pred, boxes))}
+    return out
+
+
+__all__ = ["curves", "evaluate", "evaluate_files"]
