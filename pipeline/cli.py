@@ -1,0 +1,201 @@
+"""``dualtrack`` command line (also ``python -m pipeline``).
+
+Exit status: 0 success; 1 bad input or a failed run (one line on stderr, no traceback);
+130 interrupted (the outputs for the frames done are valid). Set ``DUALTRACK_DEBUG=1``
+to see the traceback of an unexpected error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+PROG = "dualtrack"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 1 (design.md), not argparse's 2
+        self.exit(1, f"{PROG}: error: {message} (see {self.prog} --help)\n")
+
+
+def _add_open_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--channel", choices=("visible", "infrared"),
+                   help="what a one-channel folder holds (default: grey = infrared); in a two-channel folder, use only this channel")
+    p.add_argument("--align", choices=("none", "resize"), default="none",
+                   help="'resize' scales infrared frames to the visible size when they differ")
+    p.add_argument("--gt-base", type=float, default=None, metavar="B",
+                   help="coordinate base of the ground-truth files (0 or 1; default per layout)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from pipeline import __version__
+
+    parser = _Parser(prog=PROG, description="Tracking in registered infrared + visible video.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("track", help="track targets through a sequence folder")
+    p.add_argument("seq_dir", type=Path)
+    p.add_argument("--out", type=Path, help="run folder (default runs/<sequence name>)")
+    p.add_argument("--tracker", default=None, help="tracker engine (see 'dualtrack trackers')")
+    p.add_argument("--init", action="append", metavar="X,Y,W,H", help="initial box (repeatable; ids 1..N)")
+    p.add_argument("--init-file", type=Path, help="file of x,y,w,h lines or MOT rows of frame 1")
+    p.add_argument("--detect", action="store_true", help="find the initial targets automatically")
+    p.add_argument("--config", type=Path, help="TOML file of parameters ([section] tables)")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE", help="override one parameter")
+    p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
+    p.add_argument("--no-plots", action="store_true", help="do not write plots/")
+    p.add_argument("--protocol", choices=("default", "gtot", "rgbt234", "lasher"), default="default")
+    p.add_argument("--force", action="store_true", help="overwrite a non-empty run folder")
+    p.add_argument("--frames", type=int, default=None, metavar="N", help="stop after N frames")
+    _add_open_options(p)
+
+    p = sub.add_parser("evaluate", help="score a results file against a sequence's ground truth")
+    p.add_argument("seq_dir", type=Path)
+    p.add_argument("tracks_csv", type=Path)
+    p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    p.add_argument("--protocol", choices=("default", "gtot", "rgbt234", "lasher"), default="default")
+    _add_open_options(p)
+
+    p = sub.add_parser("synth", help="write synthetic sequences with exact ground truth")
+    p.add_argument("name", nargs="?", help="scenario name (see --list)")
+    p.add_argument("out_dir", nargs="?", type=Path)
+    p.add_argument("--list", action="store_true", help="print the scenarios, one per line, name first")
+    p.add_argument("--all", action="store_true", help="write every scenario into OUT_DIR/<name>/")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--force", action="store_true", help="overwrite existing sequence folders")
+
+    p = sub.add_parser("bench", help="compare trackers on sequences: accuracy and speed on one core")
+    p.add_argument("seq_dirs", type=Path, nargs="+")
+    p.add_argument("--trackers", default=None, help="comma-separated tracker names")
+    p.add_argument("--json", type=Path, help="also write the table as JSON")
+    p.add_argument("--out", type=Path, help="keep the run folders here (default: a temporary folder)")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
+    p.add_argument("--config", type=Path)
+    _add_open_options(p)
+
+    sub.add_parser("trackers", help="list the tracker engines and whether they can run here")
+    return parser
+
+
+def _cmd_track(a: argparse.Namespace) -> int:
+    from pipeline.run import RunOptions, run_track
+    from pipeline.trackers import DEFAULT_TRACKER
+
+    res = run_track(a.seq_dir, RunOptions(
+        tracker=a.tracker or DEFAULT_TRACKER, out_dir=a.out, init=a.init, init_file=a.init_file, detect=a.detect,
+        channel=a.channel, align=a.align, gt_base=a.gt_base, config_path=a.config, sets=a.set,
+        rrd=not a.no_rrd, plots=not a.no_plots, protocol=a.protocol, force=a.force, stop_frame=a.frames,
+    ))
+    s = res.summary
+    line = f"{res.out_dir}: {s['frames']}/{s['frames_total']} frames, {s['tracker']}, fps_tracking {s['fps_tracking']}"
+    m = s.get("metrics")
+    if isinstance(m, dict):
+        parts = [f"{k} {m[k]:.3f}" for k in ("p20", "auc", "mpr", "msr", "pr", "sr", "mota", "idf1") if isinstance(m.get(k), float)]
+        line += ", " + ", ".join(parts)
+    print(line)
+    if res.error:
+        print(f"{PROG}: error: {res.error} (results for the {s['frames']} frames before it are in {res.out_dir})", file=sys.stderr)
+        return 1
+    if res.interrupted:
+        print(f"{PROG}: interrupted after {s['frames']} frames; outputs in {res.out_dir} are valid", file=sys.stderr)
+        return 130
+    return 0
+
+
+def _cmd_evaluate(a: argparse.Namespace) -> int:
+    import json
+
+    from pipeline.eval import evaluate_files
+
+    m = evaluate_files(a.seq_dir, a.tracks_csv, a.protocol, channel=a.channel, align=a.align, gt_base=a.gt_base)
+    if a.json:
+        print(json.dumps(m))
+        return 0
+    keys = [k for k in ("p5", "p20", "auc", "mean_error_px", "npr", "mpr", "msr", "pr", "sr", "mota", "motp", "idf1", "id_switches", "hota") if k in m]
+    for k in keys:
+        v = m[k]
+        print(f"{k:>14}  {v:.4f}" if isinstance(v, float) else f"{k:>14}  {v}")
+    return 0
+
+
+def _cmd_synth(a: argparse.Namespace) -> int:
+    from pipeline.errors import InputError
+    from pipeline.synthetic import SCENARIOS, synthesize
+
+    if a.list:
+        for name, sc in SCENARIOS.items():
+            print(f"{name}  {sc.description}")
+        return 0
+    if a.all:
+        out = a.out_dir if a.out_dir is not None else (Path(a.name) if a.name else None)
+        if out is None:
+            raise InputError("synth --all needs OUT_DIR")
+        names = list(SCENARIOS)
+        for name in names:
+            synthesize(name, out / name, seed=a.seed, force=a.force)
+        print(f"wrote {len(names)} sequences into {out}")
+        return 0
+    if not a.name or a.out_dir is None:
+        raise InputError("synth needs NAME OUT_DIR (or --list, or --all OUT_DIR)")
+    path = synthesize(a.name, a.out_dir, seed=a.seed, force=a.force)
+    print(f"wrote {path}")
+    return 0
+
+
+def _cmd_bench(a: argparse.Namespace) -> int:
+    from pipeline.bench import format_table, run_bench
+
+    trackers = [t.strip() for t in (a.trackers or "").split(",") if t.strip()] or None
+    rows = run_bench(a.seq_dirs, trackers, out=a.out, json_path=a.json, sets=a.set, config_path=a.config,
+                     channel=a.channel, align=a.align, gt_base=a.gt_base)
+    print(format_table(rows))
+    return 0
+
+
+def _cmd_trackers(_a: argparse.Namespace) -> int:
+    from pipeline.trackers import DEFAULT_TRACKER, available_trackers, tracker_names
+
+    ok = set(available_trackers())
+    for n in tracker_names():
+        note = "default" if n == DEFAULT_TRACKER else ""
+        if n not in ok:
+            note = "needs opencv-contrib (not installed)"
+        print(f"{n:16s} {note}".rstrip())
+    return 0
+
+
+COMMANDS = {"track": _cmd_track, "evaluate": _cmd_evaluate, "synth": _cmd_synth, "bench": _cmd_bench,
+            "trackers": _cmd_trackers}
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "bench":  # one core, before numpy/OpenCV start their thread pools
+        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+            os.environ[var] = "1"
+    parser = build_parser()
+    a = parser.parse_args(argv)
+    from pipeline.errors import InputError
+
+    try:
+        return COMMANDS[a.command](a)
+    except InputError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 1
+    except Exception as exc:  # unexpected: still one line unless debugging
+        if os.environ.get("DUALTRACK_DEBUG"):
+            raise
+        print(f"{PROG}: internal error: {type(exc).__name__}: {exc} (set DUALTRACK_DEBUG=1 for the traceback)", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

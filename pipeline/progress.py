@@ -1,0 +1,49 @@
+"""A minimal progress bar: drawn on a terminal, silent when stderr is not a TTY."""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+
+class Progress:
+    """``with Progress(total, "dual") as p: p.update(1, fps=...)``."""
+
+    def __init__(self, total: int, desc: str = "", enabled: bool | None = None, stream: TextIO | None = None):
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty() if enabled is None else enabled
+        self.total = max(total, 1)
+        self.desc = desc
+        self.n = 0
+        self.t0 = time.perf_counter()
+        self._last = 0.0
+        self.postfix = ""
+
+    def update(self, n: int = 1, **postfix: object) -> None:
+        self.n += n
+        if postfix:
+            self.postfix = " ".join(f"{k}={v}" for k, v in postfix.items())
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if now - self._last < 0.1 and self.n < self.total:
+            return
+        self._last = now
+        frac = min(self.n / self.total, 1.0)
+        width = 28
+        bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
+        rate = self.n / max(now - self.t0, 1e-9)
+        self.stream.write(f"\r{self.desc} [{bar}] {self.n}/{self.total} {rate:6.1f}/s {self.postfix}  ")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\n")
+            self.stream.flush()
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

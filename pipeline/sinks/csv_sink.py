@@ -1,0 +1,79 @@
+"""``tracks.csv`` (MOTChallenge rows) and ``targets.csv`` (per-target status table).
+
+Rows are written and flushed frame by frame, so a run interrupted at any frame leaves
+both files valid for the frames done.
+
+``tracks.csv``: no header; ``frame,id,x,y,w,h,conf,-1,-1,-1`` per target per frame while
+the target is tracked or occluded (``conf`` lower when occluded); no row once it is lost
+(and none while tentative).
+
+``targets.csv``: header; ``frame,id,status,x_px,y_px,w_px,h_px,source,iterations,rho,
+model_update,diagnostics`` for every target every frame. ``iterations`` lists the
+iterations per stage (``meanshift=4;levelset=37``), ``model_update`` the decision and
+its reason (``updated:rho-high``), ``diagnostics`` named values (``d=0.31;area_px2=812``).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+from types import TracebackType
+
+from pipeline.types import FrameResult
+
+TARGETS_HEADER = (
+    "frame", "id", "status", "x_px", "y_px", "w_px", "h_px", "source", "iterations", "rho", "model_update", "diagnostics",
+)
+
+
+def _num(v: float) -> str:
+    return f"{v:.3f}" if math.isfinite(v) else ""
+
+
+def _pairs(d: dict[str, float] | object) -> str:
+    items = getattr(d, "items", lambda: [])()
+    out = []
+    for k, v in items:
+        if isinstance(v, float):
+            out.append(f"{k}={v:.4g}" if math.isfinite(v) else f"{k}=")
+        else:
+            out.append(f"{k}={v}")
+    return ";".join(out)
+
+
+class CsvSink:
+    """Writes ``tracks.csv`` and ``targets.csv`` into a run folder."""
+
+    def __init__(self, out_dir: Path):
+        self._tracks = open(out_dir / "tracks.csv", "w", newline="")  # noqa: SIM115 - closed in close()
+        self._targets = open(out_dir / "targets.csv", "w", newline="")  # noqa: SIM115
+        self._tw = csv.writer(self._tracks, lineterminator="\n")
+        self._gw = csv.writer(self._targets, lineterminator="\n")
+        self._gw.writerow(TARGETS_HEADER)
+        self._targets.flush()
+
+    def write(self, result: FrameResult) -> None:
+        f = result.frame
+        for t in result.targets:
+            b = t.box
+            if t.status.is_reported:
+                self._tw.writerow([f, t.id, _num(b.x), _num(b.y), _num(b.w), _num(b.h), f"{t.confidence:.3f}", -1, -1, -1])
+            self._gw.writerow([
+                f, t.id, t.status.value, _num(b.x), _num(b.y), _num(b.w), _num(b.h), t.source,
+                _pairs(t.iterations), _num(t.rho) if not math.isnan(t.rho) else "", t.model_update,
+                _pairs(t.diagnostics),
+            ])
+        self._tracks.flush()
+        self._targets.flush()
+
+    def close(self) -> None:
+        for fh in (self._tracks, self._targets):
+            if not fh.closed:
+                fh.close()
+
+    def __enter__(self) -> CsvSink:
+        return self
+
+    def __exit__(self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
+        self.close()
