@@ -198,8 +198,10 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
         if opts.rrd:
             from pipeline.sinks.rerun_sink import RerunSink
 
+            start = f"{opts.tracker} on {seq.name} ({seq.layout}, {'+'.join(seq.channels)}): " + ", ".join(
+                f"T{t.id} {t.box}" for t in targets)
             rrd_sink = RerunSink(out / "run.rrd", seq.channels, [t.id for t in targets], cfg.rerun, seq.name,
-                                 config_to_dict(cfg), seq.truth.has_truth)
+                                 config_to_dict(cfg), seq.truth.has_truth, start)
         with Progress(n, f"{opts.tracker} {seq.name}", enabled=opts.progress) as bar:
             for s in iter_track(seq, engine, targets, n):
                 tracker_s += s.tracker_seconds

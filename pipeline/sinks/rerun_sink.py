@@ -87,6 +87,7 @@ class RerunSink:
         recording_name: str,
         config: dict[str, object] | None = None,
         has_truth: bool = False,
+        start_message: str | None = None,
     ):
         self.cfg = cfg
         self.channels = channels
@@ -97,21 +98,18 @@ class RerunSink:
         self._status: dict[int, TargetStatus] = {}
         self._known_ids: set[int] = set()
         self._closed = False
+        self._start_message = start_message
+        self._state_config = rr.StateConfiguration(
+            values=[st.value for st in TargetStatus],
+            labels=[st.value for st in TargetStatus],
+            colors=np.array([STATUS_COLORS[st] for st in TargetStatus], np.uint32),
+        )
         self._log_static(target_ids, config, has_truth)
 
     # -- static ---------------------------------------------------------------------
     def _log_static(self, target_ids: list[int], config: dict[str, object] | None, has_truth: bool) -> None:
         self.rec.log("/", rr.AnnotationContext([]), static=True)  # replaced as ids appear
         self._annotate(target_ids)
-        self.rec.log(
-            "targets",
-            rr.StateConfiguration(
-                values=[s.value for s in TargetStatus],
-                labels=[s.value for s in TargetStatus],
-                colors=np.array([STATUS_COLORS[s] for s in TargetStatus], np.uint32),
-            ),
-            static=True,
-        )
         if config is not None:
             self.rec.log("config", rr.TextDocument(json.dumps(config, indent=2), media_type="text/plain"), static=True)
         self._has_truth = has_truth
@@ -129,6 +127,7 @@ class RerunSink:
                 rr.SeriesLines(colors=[track_color(i)], names=[f"T{i}"]),
                 static=True,
             )
+            self.rec.log(f"targets/{i}/status", self._state_config, static=True)
 
     # -- per frame --------------------------------------------------------------------
     def write(self, frames: FramePair, result: FrameResult, errors: dict[int, float] | None = None) -> None:
@@ -136,6 +135,9 @@ class RerunSink:
             raise RuntimeError("RerunSink is closed")
         f = result.frame
         self._frames.append(f)
+        if self._start_message is not None:
+            self._buf["events"].append((f, f"[start] {self._start_message}", "start"))
+            self._start_message = None
         for ch in self.channels:
             enc = getattr(frames, f"{ch}_encoded")
             if enc is None:

@@ -1,0 +1,88 @@
+"""Single-target metrics against hand-computed values and a plain-loop reference."""
+
+import math
+
+import numpy as np
+import pytest
+
+from pipeline.eval import evaluate
+from pipeline.eval.single import center_errors, ious, precision_curve, single_target_metrics, success_curve
+from pipeline.io.results import TrackTable
+from pipeline.io.sequence import Truth
+
+NAN = [math.nan] * 4
+
+
+def test_hand_computed_fixture():
+    gt = np.array([[0, 0, 10, 10], [0, 0, 10, 10], [0, 0, 10, 10], NAN, [0, 0, 10, 10]], float)
+    pred = np.array([[0, 0, 10, 10], [3, 4, 10, 10], [20, 0, 10, 10], [5, 5, 5, 5], NAN], float)
+    err = center_errors(pred, gt)
+    np.testing.assert_allclose(err[:3], [0, 5, 20])
+    assert math.isnan(err[3]) and math.isinf(err[4])
+    ov = ious(pred, gt)
+    np.testing.assert_allclose(ov[[0, 1, 2, 4]], [1.0, 42 / 158, 0.0, 0.0])
+    m = single_target_metrics(pred, gt)
+    assert m["frames"] == 4 and m["frames_without_output"] == 1
+    assert m["p5"] == 0.5  # errors 0 and 5 (inclusive) of 4 frames
+    assert m["p20"] == 0.75  # 20 is inclusive
+    assert m["mean_error_px"] == pytest.approx((0 + 5 + 20) / 3)
+    # success: frame 0 (IoU 1) counts for t < 1; frame 1 (0.2658) for t in {0, .05, ..., .25}; t=1 never
+    assert m["auc"] == pytest.approx((20 * 1 + 6 * 1) / 4 / 21)
+
+
+def _reference(pred, gt):
+    """Independent plain-loop computation of p20 and AUC (default protocol)."""
+    errs, ovs = [], []
+    for p, g in zip(pred, gt, strict=True):
+        if any(math.isnan(v) for v in g):
+            continue
+        if any(math.isnan(v) for v in p):
+            errs.append(math.inf)
+            ovs.append(0.0)
+            continue
+        errs.append(math.dist((p[0] + p[2] / 2, p[1] + p[3] / 2), (g[0] + g[2] / 2, g[1] + g[3] / 2)))
+        iw = max(0.0, min(p[0] + p[2], g[0] + g[2]) - max(p[0], g[0]))
+        ih = max(0.0, min(p[1] + p[3], g[1] + g[3]) - max(p[1], g[1]))
+        inter = iw * ih
+        ovs.append(inter / (p[2] * p[3] + g[2] * g[3] - inter))
+    p20 = sum(e <= 20 for e in errs) / len(errs)
+    auc = sum(sum(o > t / 20 for o in ovs) / len(ovs) for t in range(21)) / 21
+    return p20, auc
+
+
+def test_random_against_reference():
+    rng = np.random.default_rng(3)
+    gt = np.column_stack([rng.uniform(0, 200, 300), rng.uniform(0, 200, 300), rng.uniform(10, 60, 300), rng.uniform(10, 60, 300)])
+    pred = gt + rng.normal(0, 12, gt.shape)
+    pred[:, 2:] = np.abs(pred[:, 2:]) + 1
+    gt[::17] = np.nan
+    pred[::23] = np.nan
+    m = single_target_metrics(pred, gt)
+    p20, auc = _reference(pred, gt)
+    assert m["p20"] == pytest.approx(p20, abs=1e-12) and m["auc"] == pytest.approx(auc, abs=1e-12)
+
+
+def test_curves_monotone():
+    err = np.array([0, 3, 7, 40, np.inf, np.nan])
+    pc = precision_curve(err)
+    assert pc.shape == (51,) and np.all(np.diff(pc) >= 0) and pc[0] == 0.2 and pc[50] == 0.8
+    sc = success_curve(np.array([0.0, 0.5, 1.0, np.nan]))
+    assert sc[0] == pytest.approx(2 / 3) and sc[-1] == 0.0
+
+
+def test_mpr_msr_take_the_better_channel():
+    gv = np.array([[0, 0, 10, 10]], float)
+    gi = np.array([[4, 0, 10, 10]], float)
+    pred = np.array([[4, 0, 10, 10]], float)
+    m = single_target_metrics(pred, gv, gi)
+    assert m["p5"] == 1.0 and m["mpr"] == 1.0 and m["msr"] == pytest.approx(20 / 21)
+
+
+def test_evaluate_object_keys():
+    gt = np.array([[0, 0, 10, 10]] * 3, float)
+    truth = Truth({"visible": {1: gt}, "infrared": {1: gt}})
+    out = evaluate(truth, TrackTable({1: gt.copy()}, {}), 3)
+    for k in ("p5", "p20", "auc", "mean_error_px", "npr", "mpr", "msr", "targets"):
+        assert k in out
+    assert out["p20"] == 1.0 and out["targets"]["1"]["auc"] == pytest.approx(20 / 21)
+    assert "mota" not in out  # one target: no MOT keys

@@ -1,0 +1,68 @@
+"""Bin images, kernel histograms and the Bhattacharyya coefficient on tiny arrays."""
+
+import cv2
+import numpy as np
+import pytest
+
+from pipeline.stages.histogram import (
+    HistogramConfig,
+    bhattacharyya,
+    bhattacharyya_distance,
+    hsv_bin_image,
+    intensity_bin_image,
+    kernel_histogram,
+    kernel_window,
+    search_roi,
+)
+from pipeline.types import BBox
+
+CFG = HistogramConfig()
+
+
+def test_hsv_bins_exact():
+    # one pixel per known HSV value (OpenCV 8-bit HSV: H 0..179)
+    hsv = np.array([[[0, 0, 0], [179, 255, 255], [90, 128, 64], [45, 63, 192]]], np.uint8)
+    bgr = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+    back = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)  # what the stage will see after the round trip
+    h, s, v = back[0, :, 0].astype(int), back[0, :, 1].astype(int), back[0, :, 2].astype(int)
+    expect = (h * 16 // 180) * 16 + (s * 4 // 256) * 4 + v * 4 // 256
+    np.testing.assert_array_equal(hsv_bin_image(bgr, CFG)[0], expect)
+    assert hsv_bin_image(bgr, CFG).max() < CFG.hsv_bins == 256
+
+
+def test_intensity_bins_exact():
+    g = np.array([[0, 7, 8, 255]], np.uint8)
+    np.testing.assert_array_equal(intensity_bin_image(g, CFG), [[0, 0, 1, 31]])
+
+
+def test_kernel_window_epanechnikov_weights():
+    win = kernel_window((10, 10), 5.0, 5.0, 2.0, 2.0)
+    # pixel centres (4.5, 4.5): r^2 = 2*(0.25^2) = 0.125 -> k = 0.875
+    i = np.where((win.rows == 4) & (win.cols == 4))[0][0]
+    assert win.k[i] == pytest.approx(0.875)
+    assert (win.k > 0).all() and win.mass_fraction == pytest.approx(1.0, abs=0.03)
+    cut = kernel_window((10, 10), 0.0, 5.0, 2.0, 2.0)  # half the ellipse outside the image
+    assert cut.mass_fraction == pytest.approx(0.5, abs=0.05)
+
+
+def test_histogram_normalized_and_rho_identity():
+    rng = np.random.default_rng(0)
+    bins = rng.integers(0, 32, (40, 40)).astype(np.int32)
+    p = kernel_histogram(bins, BBox(5, 5, 20, 16), 32)
+    assert p.sum() == pytest.approx(1.0) and (p >= 0).all()
+    assert bhattacharyya(p, p) == pytest.approx(1.0)
+    q = kernel_histogram(bins, BBox(15, 18, 20, 16), 32)
+    d_cv = cv2.compareHist(p.astype(np.float32), q.astype(np.float32), cv2.HISTCMP_BHATTACHARYYA)
+    assert bhattacharyya_distance(bhattacharyya(p, q)) == pytest.approx(d_cv, abs=1e-5)
+    assert bhattacharyya(np.eye(4)[0], np.eye(4)[1]) == 0.0
+
+
+def test_search_roi_clipped_and_never_empty():
+    assert search_roi(BBox(10, 10, 10, 20), 1.0, 100, 100) == (0, 0, 30, 50)
+    assert search_roi(BBox(200, 200, 10, 10), 1.0, 100, 100) == (99, 99, 100, 100)
+
+
+@pytest.mark.parametrize("kw", [dict(hue_bins=1), dict(value_bins=0), dict(intensity_bins=300)])
+def test_bad_config(kw):
+    with pytest.raises(ValueError):
+        HistogramConfig(**kw)
