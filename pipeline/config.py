@@ -24,7 +24,9 @@ from typing import Any
 from pipeline.errors import ConfigError
 from pipeline.stages.histogram import HistogramConfig
 from pipeline.sinks.settings import RerunConfig
+from pipeline.stages.kalman import KalmanConfig
 from pipeline.stages.meanshift import MeanShiftConfig
+from pipeline.stages.occlusion import OcclusionConfig
 from pipeline.trackers.peers import CamShiftConfig, OpenCVTrackerConfig
 
 
@@ -42,6 +44,10 @@ class PipelineConfig:
         OpenCV CamShift peer.
     opencv : OpenCVTrackerConfig
         OpenCV MIL/CSRT/KCF peers.
+    kalman : KalmanConfig
+        Kalman motion stage (all trackers that predict).
+    occlusion : OcclusionConfig
+        Kalman-CAMShift occlusion grading.
     rerun : RerunConfig
         The .rrd recording.
     """
@@ -50,6 +56,8 @@ class PipelineConfig:
     meanshift: MeanShiftConfig = field(default_factory=MeanShiftConfig)
     camshift: CamShiftConfig = field(default_factory=CamShiftConfig)
     opencv: OpenCVTrackerConfig = field(default_factory=OpenCVTrackerConfig)
+    kalman: KalmanConfig = field(default_factory=KalmanConfig)
+    occlusion: OcclusionConfig = field(default_factory=OcclusionConfig)
     rerun: RerunConfig = field(default_factory=RerunConfig)
 
 

@@ -209,7 +209,9 @@ class TargetResult:
     contour : list of Points
         Contours found by a level-set stage (frame px), possibly empty.
     diagnostics : Mapping[str, float]
-        Named scalar diagnostics (``d``, ``area_px2``, prediction, ...).
+        Named scalar diagnostics (``d``, ``area_px2``, ...).
+    overlays : Mapping[str, BBox]
+        Named auxiliary boxes to draw (``prediction``, ``search``), frame px.
     """
 
     id: int
@@ -222,6 +224,7 @@ class TargetResult:
     confidence: float = 1.0
     contour: tuple[Points, ...] = ()
     diagnostics: Mapping[str, float] = field(default_factory=dict)
+    overlays: Mapping[str, BBox] = field(default_factory=dict)
 
     def replace(self, **changes: object) -> TargetResult:
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]

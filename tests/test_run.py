@@ -83,11 +83,11 @@ def test_evaluate_agrees_with_independent_computation(scene, tmp_path):
 
 @pytest.mark.parametrize("tracker", ["meanshift", "camshift", "mil"])
 def test_engines_run_and_report_every_frame(scene, tracker, tmp_path):
-    seq_dir = scene("pole-fast")  # 40 frames
+    seq_dir = scene("pole-fast")  # 32 frames
     res = run_track(seq_dir, RunOptions(tracker=tracker, out_dir=tmp_path / tracker, rrd=False, plots=False))
     assert res.complete
     targets = _csv_rows(res.out_dir / "targets.csv")[1:]
-    assert [int(r[0]) for r in targets] == list(range(1, 41))
+    assert [int(r[0]) for r in targets] == list(range(1, 33))
     assert res.summary["fps_tracking"] > 0
 
 

@@ -77,7 +77,22 @@ def test_occluders_hide_and_frames_leave(scene):
     meta = json.loads((scene("occluded-moving") / "scene.json").read_text())
     hidden = meta["hidden_frames"]["1"]
     assert len(hidden) == 1 and hidden[0][1] - hidden[0][0] >= 10
-    pf = json.loads((scene("pole-fast") / "scene.json").read_text())
-    assert pf["absent_frames"]["1"] == [[40, 40]]  # the car has left the frame
-    seq = open_sequence(scene("pole-fast"))
-    assert np.isnan(seq.truth.boxes["visible"][1][39]).all()
+
+
+
+def test_target_leaving_the_frame_has_no_truth(tmp_path, monkeypatch):
+    from pipeline import synthetic
+    from pipeline.synthetic.scenarios import keyframes
+    from pipeline.synthetic.scene import Actor, Scene
+
+    sc = Scene("exit", "leaves", 160, 120, 12, (Actor("car", 40, keyframes([(1, 100, 70, 1.0), (12, 210, 70, 1.0)]),
+                                                       target_id=1),))
+    monkeypatch.setitem(synthetic.SCENARIOS, "exit", sc)
+    d = synthetic.synthesize("exit", tmp_path / "exit")
+    meta = json.loads((d / "scene.json").read_text())
+    seq = open_sequence(d)
+    gt = seq.truth.boxes["visible"][1]
+    absent = meta["absent_frames"]["1"]
+    assert absent and absent[-1][1] == 12
+    assert np.isnan(gt[11]).all() and not np.isnan(gt[0]).any()
+    assert gt[5, 0] + gt[5, 2] > 160  # partly outside: the amodal box extends past the border

@@ -157,6 +157,12 @@ class RerunSink:
             [f"T{t.id} {t.status.value}" for t in shown],
             [-1.0 if t.status.is_occluded or t.status == TargetStatus.TENTATIVE else -2.5 for t in shown],
         ))
+        for t in shown:
+            for name, ob in t.overlays.items():
+                self._buf[f"overlay:{name}"].append((f, t.id, ob))
+            for name, v in t.diagnostics.items():
+                if isinstance(v, float | int) and np.isfinite(v):
+                    self._buf[f"diagnostics/{t.id}/{name}"].append((f, float(v)))
         strips, sids = [], []
         for t in result.targets:
             for c in t.contour:
@@ -204,6 +210,20 @@ class RerunSink:
                 ).partition(lengths)
                 for ch in self.channels:
                     rec.send_columns(f"{ch}/targets", indexes=idx, columns=cols)
+            elif key.startswith("overlay:"):
+                name = key.split(":", 1)[1]
+                frames_sorted = sorted({r[0] for r in rows})
+                per = {fr: [r for r in rows if r[0] == fr] for fr in frames_sorted}
+                arr = np.asarray([[r[2].cx, r[2].cy, r[2].w / 2, r[2].h / 2] for fr in frames_sorted for r in per[fr]],
+                                 np.float32).reshape(-1, 4)
+                cols = rr.Boxes2D.columns(
+                    centers=arr[:, :2], half_sizes=arr[:, 2:],
+                    class_ids=np.asarray([class_id(r[1]) for fr in frames_sorted for r in per[fr]], np.uint16),
+                    radii=np.full(len(arr), -0.75, np.float32),
+                ).partition([len(per[fr]) for fr in frames_sorted])
+                oidx = [rr.TimeColumn("frame", sequence=np.asarray(frames_sorted, np.int64))]
+                for ch in self.channels:
+                    rec.send_columns(f"{ch}/{name}", indexes=oidx, columns=cols)
             elif key == "contours":
                 if "infrared" not in self.channels and not any(r[1] for r in rows):
                     continue

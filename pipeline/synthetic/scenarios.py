@@ -184,10 +184,10 @@ def _group3() -> Scene:
 
 
 def _occluded_static() -> Scene:
-    van = Actor("truck", 150, keyframes([(1, -110, 146, 1.0), (180, 430, 146, 1.0)]), depth=5.0, body_color=(235, 235, 235),
-                ir_contrast=25.0, name="box truck")
+    van = Actor("truck", 150, keyframes([(1, -110, 146, 1.0), (180, 430, 146, 1.0)]), depth=5.0, body_color=(60, 135, 70),
+                ir_contrast=25.0, name="green box truck")
     return Scene(
-        "occluded-static", "a target standing still is hidden by a truck driving past", 320, 240, 180,
+        "occluded-static", "a target standing still is hidden by a truck of its own shirt colour driving past", 320, 240, 180,
         (Actor("person", 58, lambda t: (160.0 + 2 * math.sin(t / 9), 150.0, 1.0), target_id=1, palette=GREEN,
                walk_phase_per_px=1 / 200), van),
         notes={"hidden": [80, 95]},
@@ -206,11 +206,11 @@ def _occluded_moving() -> Scene:
 
 def _pole_fast() -> Scene:
     return Scene(
-        "pole-fast", "a fast car (8 px per frame) passes behind a lamp post and leaves the frame", 320, 240, 40,
+        "pole-fast", "a fast car (16 px per frame, a quarter of its length) passes behind a lamp post (640x360)", 640, 360, 32,
         (
-            Actor("car", 72, keyframes([(1, 45, 160, 1.0), (40, 357, 160, 1.0)]), target_id=1, body_color=(200, 30, 30),
+            Actor("car", 64, keyframes([(1, 52, 223, 1.0), (32, 548, 223, 1.0)]), target_id=1, body_color=(200, 30, 30),
                   ir_contrast=80.0),
-            Actor("pillar", 14, lambda t: (165.0, 130.0, 1.0), depth=5.0, height_px=200, body_color=(90, 90, 95), name="pole"),
+            Actor("pillar", 28, lambda t: (320.0, 180.0, 1.0), depth=5.0, height_px=288, body_color=(90, 90, 95), name="pole"),
         ),
     )
 

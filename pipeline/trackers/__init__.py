@@ -5,12 +5,14 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from pipeline.errors import InputError
+from pipeline.trackers import kalman_camshift as _kc
 from pipeline.trackers import meanshift as _meanshift
 from pipeline.trackers.base import Engine, FunctionalEngine
 from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
 
 _FACTORIES: dict[str, Callable[[object], Engine]] = {
     "meanshift": lambda cfg: FunctionalEngine("meanshift", _meanshift.init, _meanshift.step, cfg),
+    "kalman-camshift": lambda cfg: FunctionalEngine("kalman-camshift", _kc.init, _kc.step, cfg),
     "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),  # type: ignore[attr-defined]
     "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),  # type: ignore[attr-defined]
     "csrt": lambda cfg: OpenCVEngine("csrt", cfg.opencv),  # type: ignore[attr-defined]

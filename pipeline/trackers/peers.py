@@ -41,6 +41,12 @@ class CamShiftConfig:
     epsilon_px : float
         Stop when the window moves less than this, px; default 1 (OpenCV rounds
         epsilon squared, so values below 0.5 never stop early).
+    saturation_bins : int
+        Saturation bins crossed with the hue bins in the back-projection of
+        ``kalman-camshift``, in [1, 16]; default 4. 1 is the hue-only back-projection
+        the paper and OpenCV's recipe use; measured on the occluded-moving scene it
+        locks onto a brown wall that shares the hue of the target's shirt and skin
+        (P@20 0.36 vs 1.00 with 4). The plain ``camshift`` peer always uses hue only.
     """
 
     hue_bins: int = 16
@@ -49,6 +55,7 @@ class CamShiftConfig:
     min_value: int = 32
     max_iterations: int = 10
     epsilon_px: float = 1.0
+    saturation_bins: int = 4
 
     def __post_init__(self) -> None:
         if not 2 <= self.hue_bins <= 180:
@@ -61,6 +68,8 @@ class CamShiftConfig:
             raise ValueError(f"camshift.max_iterations must be >= 1; got {self.max_iterations!r}")
         if self.epsilon_px <= 0:
             raise ValueError(f"camshift.epsilon_px must be > 0; got {self.epsilon_px!r}")
+        if not 1 <= self.saturation_bins <= 16:
+            raise ValueError(f"camshift.saturation_bins must be in [1, 16]; got {self.saturation_bins!r}")
 
 
 @dataclass(frozen=True)

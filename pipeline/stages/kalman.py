@@ -1,0 +1,199 @@
+"""Kalman motion stage over the box ``(x, y, w, h)`` (centre and size, px), shared by every tracker.
+
+Two models, ``dt`` = 1 frame by default (the Kalman-CAMShift paper's 12-state model and
+a constant-velocity variant)::
+
+    constant acceleration:  s = [x, y, w, h, x', y', w', h', x'', y'', w'', h'']  (12)
+        F = [[I, dt I, dt^2/2 I], [0, I, dt I], [0, 0, I]]
+        Q = q * [[dt^5/20, dt^4/8, dt^3/6], [dt^4/8, dt^3/3, dt^2/2], [dt^3/6, dt^2/2, dt]]   (white jerk)
+    constant velocity:      s = [x, y, w, h, x', y', w', h']                          (8)
+        F = [[I, dt I], [0, I]]
+        Q = q * [[dt^3/3, dt^2/2], [dt^2/2, dt]]                                          (white acceleration)
+
+with ``q`` = ``position_noise`` for x, y and ``size_noise`` for w, h; ``z = H s = (x, y, w, h)``
+and ``R = diag(sigma_p^2, sigma_p^2, sigma_s^2, sigma_s^2)``.
+
+The algebra is filterpy's (``filterpy.kalman.predict`` / ``update``, Joseph-form
+posterior): a maintained implementation with exactly this procedural ``(x, P)`` API.
+``cv2.KalmanFilter`` was the other candidate; it is a mutable object (our states are
+frozen values), hides the innovation covariance S (only in its undocumented ``temp3``)
+and needs float32 matrices of exact shape. State vectors are 1-D in this API.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from filterpy.kalman import predict as _fp_predict
+from filterpy.kalman import update as _fp_update
+
+from pipeline.types import BBox
+
+
+@dataclass(frozen=True)
+class KalmanConfig:
+    """Motion model and noise of the Kalman stage.
+
+    Parameters
+    ----------
+    model : str
+        ``constant_acceleration`` (12 states, the Kalman-CAMShift paper's) or
+        ``constant_velocity`` (8 states); default ``constant_acceleration``.
+    dt_frames : float
+        Time step, frames, > 0; default 1.
+    position_noise : float
+        Process noise intensity q of x, y, (px/frame^3)^2 for the white-jerk model or
+        (px/frame^2)^2 for the white-acceleration model, > 0; default 0.05. Increasing
+        it follows manoeuvres faster and trusts the prediction less during occlusion,
+        and makes the velocity carried through an occlusion noisier. Default 0.01.
+    size_noise : float
+        Process noise intensity q of w, h (same units), > 0; default 0.005.
+    position_std_px : float
+        Measurement noise sigma of the box centre, px, > 0; default 3.
+    size_std_px : float
+        Measurement noise sigma of the box size, px, > 0; default 5.
+    initial_velocity_std_px_per_frame : float
+        Prior sigma of the velocities at initialisation, px/frame, > 0; default 5.
+    initial_acceleration_std_px_per_frame2 : float
+        Prior sigma of the accelerations at initialisation, px/frame^2, > 0; default 1.
+    """
+
+    model: str = "constant_acceleration"
+    dt_frames: float = 1.0
+    position_noise: float = 0.01
+    size_noise: float = 0.005
+    position_std_px: float = 3.0
+    size_std_px: float = 5.0
+    initial_velocity_std_px_per_frame: float = 5.0
+    initial_acceleration_std_px_per_frame2: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.model not in ("constant_acceleration", "constant_velocity"):
+            raise ValueError(f"kalman.model must be 'constant_acceleration' or 'constant_velocity'; got {self.model!r}")
+        for name in ("dt_frames", "position_noise", "size_noise", "position_std_px", "size_std_px",
+                     "initial_velocity_std_px_per_frame", "initial_acceleration_std_px_per_frame2"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and v > 0):
+                raise ValueError(f"kalman.{name} must be > 0; got {v!r}")
+
+    @property
+    def order(self) -> int:
+        """Number of derivative blocks: 3 (x, x', x'') or 2 (x, x')."""
+        return 3 if self.model == "constant_acceleration" else 2
+
+    @property
+    def dim(self) -> int:
+        return 4 * self.order
+
+
+@dataclass(frozen=True)
+class GaussianState:
+    """A state estimate: mean ``x`` (n,) and covariance ``P`` (n, n)."""
+
+    x: np.ndarray
+    P: np.ndarray
+
+    @property
+    def box(self) -> BBox:
+        """The (x, y, w, h) part as a box (centre + size -> corner convention)."""
+        cx, cy, w, h = (float(v) for v in self.x[:4])
+        return BBox.from_center(cx, cy, max(w, 1.0), max(h, 1.0))
+
+    @property
+    def velocity(self) -> tuple[float, float]:
+        return float(self.x[4]), float(self.x[5])
+
+
+@dataclass(frozen=True)
+class KalmanUpdate:
+    """Result of a measurement update: the posterior and the innovation ``y`` with covariance ``S``."""
+
+    state: GaussianState
+    innovation: np.ndarray
+    S: np.ndarray
+
+    @property
+    def mahalanobis(self) -> float:
+        """sqrt(y^T S^-1 y)."""
+        return float(np.sqrt(self.innovation @ np.linalg.solve(self.S, self.innovation)))
+
+
+def _blocks(order: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """1-D transition and white-noise (unit intensity) blocks for one coordinate."""
+    if order == 3:
+        f = np.array([[1, dt, dt * dt / 2], [0, 1, dt], [0, 0, 1]], float)
+        q = np.array([[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2], [dt**3 / 6, dt**2 / 2, dt]])
+    else:
+        f = np.array([[1, dt], [0, 1]], float)
+        q = np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    return f, q
+
+
+@lru_cache(maxsize=64)
+def motion_model(cfg: KalmanConfig) -> tuple[np.ndarray, np.ndarray]:
+    """``(F, Q)`` of the configured model, states ordered ``[x, y, w, h, derivatives...]`` (cached;
+    treat the arrays as read-only)."""
+    f, q = _blocks(cfg.order, cfg.dt_frames)
+    intensity = np.diag([cfg.position_noise, cfg.position_noise, cfg.size_noise, cfg.size_noise])
+    F = np.kron(f, np.eye(4))  # blocks by derivative order, each a 4x4 diagonal
+    Q = np.kron(q, intensity)
+    F.flags.writeable = False
+    Q.flags.writeable = False
+    return F, Q
+
+
+@lru_cache(maxsize=64)
+def measurement_model(cfg: KalmanConfig) -> tuple[np.ndarray, np.ndarray]:
+    """``(H, R)``: the filter observes ``(x, y, w, h)`` (cached; read-only arrays)."""
+    H = np.zeros((4, cfg.dim))
+    H[:, :4] = np.eye(4)
+    p, s = cfg.position_std_px**2, cfg.size_std_px**2
+    R = np.diag([p, p, s, s])
+    H.flags.writeable = False
+    R.flags.writeable = False
+    return H, R
+
+
+def box_measurement(box: BBox) -> np.ndarray:
+    """``z = (cx, cy, w, h)`` of a box."""
+    return np.array([box.cx, box.cy, box.w, box.h], float)
+
+
+def init_state(box: BBox, cfg: KalmanConfig) -> GaussianState:
+    """State at the first detection: the box, zero velocity and acceleration, P0 = diag(R, v^2 I, a^2 I)."""
+    x = np.zeros(cfg.dim)
+    x[:4] = box_measurement(box)
+    _, R = measurement_model(cfg)
+    var = [np.diag(R)]
+    var.append(np.full(4, cfg.initial_velocity_std_px_per_frame**2))
+    if cfg.order == 3:
+        var.append(np.full(4, cfg.initial_acceleration_std_px_per_frame2**2))
+    return GaussianState(x, np.diag(np.concatenate(var)))
+
+
+def predict(state: GaussianState, F: np.ndarray, Q: np.ndarray, fading: float = 1.0) -> GaussianState:
+    """Prior of the next step: ``x = F x``, ``P = fading * F P F^T + Q`` (fading 1 = plain Kalman)."""
+    x, P = _fp_predict(state.x.reshape(-1, 1), state.P, F, Q, alpha=np.sqrt(fading))
+    return GaussianState(x.ravel(), P)
+
+
+def innovation(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Innovation ``y = z - H x`` and its covariance ``S = H P H^T + R`` (no update)."""
+    y = np.asarray(z, float) - H @ prior.x
+    S = H @ prior.P @ H.T + R
+    return y, S
+
+
+def update(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) -> KalmanUpdate:
+    """Posterior after measuring ``z`` (4,), with the innovation and its covariance."""
+    y, S = innovation(prior, z, H, R)
+    x, P = _fp_update(prior.x.reshape(-1, 1), prior.P, np.asarray(z, float).reshape(-1, 1), R, H)
+    return KalmanUpdate(GaussianState(x.ravel(), P), y, S)
+
+
+def log_likelihood(y: np.ndarray, S: np.ndarray) -> float:
+    """Gaussian log-density of the innovation: ``-(y^T S^-1 y + ln|2 pi S|) / 2``."""
+    sign, logdet = np.linalg.slogdet(2 * np.pi * S)
+    return float(-0.5 * (y @ np.linalg.solve(S, y) + logdet))
