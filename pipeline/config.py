@@ -22,11 +22,15 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.errors import ConfigError
+from pipeline.stages.contour import ContourConfig
 from pipeline.stages.histogram import HistogramConfig
 from pipeline.sinks.settings import RerunConfig
 from pipeline.stages.kalman import KalmanConfig
+from pipeline.stages.levelset import LevelSetConfig
 from pipeline.stages.meanshift import MeanShiftConfig
+from pipeline.stages.model_update import ModelUpdateConfig
 from pipeline.stages.occlusion import OcclusionConfig
+from pipeline.trackers.dual import DualConfig
 from pipeline.trackers.peers import CamShiftConfig, OpenCVTrackerConfig
 
 
@@ -40,6 +44,14 @@ class PipelineConfig:
         Appearance histogram binning.
     meanshift : MeanShiftConfig
         Mean-shift iteration and scale search.
+    levelset : LevelSetConfig
+        DRLSE level-set evolution.
+    contour : ContourConfig
+        The IR contour stage around the level set (region, starts, failure tests).
+    model_update : ModelUpdateConfig
+        Selective sub-model update (eq. 8-9).
+    dual : DualConfig
+        The dual-channel tracker.
     camshift : CamShiftConfig
         OpenCV CamShift peer.
     opencv : OpenCVTrackerConfig
@@ -54,6 +66,10 @@ class PipelineConfig:
 
     histogram: HistogramConfig = field(default_factory=HistogramConfig)
     meanshift: MeanShiftConfig = field(default_factory=MeanShiftConfig)
+    levelset: LevelSetConfig = field(default_factory=LevelSetConfig)
+    contour: ContourConfig = field(default_factory=ContourConfig)
+    model_update: ModelUpdateConfig = field(default_factory=ModelUpdateConfig)
+    dual: DualConfig = field(default_factory=DualConfig)
     camshift: CamShiftConfig = field(default_factory=CamShiftConfig)
     opencv: OpenCVTrackerConfig = field(default_factory=OpenCVTrackerConfig)
     kalman: KalmanConfig = field(default_factory=KalmanConfig)

@@ -64,19 +64,21 @@ class HistogramConfig:
         return self.hue_bins * self.saturation_bins * self.value_bins
 
 
-def _luts(cfg: HistogramConfig) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.int32]]:
+def _luts(cfg: HistogramConfig) -> tuple[np.ndarray, ...]:
     v = np.arange(256, dtype=np.int32)
     sv = cfg.saturation_bins * cfg.value_bins
     lut_h = np.minimum(v * cfg.hue_bins // 180, cfg.hue_bins - 1) * sv
     lut_s = (v * cfg.saturation_bins // 256) * cfg.value_bins
     lut_v = v * cfg.value_bins // 256
+    if cfg.hsv_bins <= 256:  # one byte per pixel: three cv2.LUT and two adds
+        return lut_h.astype(np.uint8), lut_s.astype(np.uint8), lut_v.astype(np.uint8)
     return lut_h.astype(np.int32), lut_s.astype(np.int32), lut_v.astype(np.int32)
 
 
-_LUT_CACHE: dict[HistogramConfig, tuple[NDArray[np.int32], ...]] = {}
+_LUT_CACHE: dict[HistogramConfig, tuple[np.ndarray, ...]] = {}
 
 
-def hsv_bin_image(bgr: NDArray[np.uint8], cfg: HistogramConfig) -> NDArray[np.int32]:
+def hsv_bin_image(bgr: NDArray[np.uint8], cfg: HistogramConfig) -> np.ndarray:
     """Bin index ``u = h*S*V + s*V + v`` of every pixel of a BGR image.
 
     Parameters
@@ -88,7 +90,8 @@ def hsv_bin_image(bgr: NDArray[np.uint8], cfg: HistogramConfig) -> NDArray[np.in
 
     Returns
     -------
-    (H, W) int32 array of bin indices in ``[0, cfg.hsv_bins)``.
+    (H, W) array of bin indices in ``[0, cfg.hsv_bins)``: uint8 when there are at most
+    256 bins (the default 16x4x4), int32 otherwise.
     """
     if bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.uint8:
         raise ValueError(f"bgr must be (H, W, 3) uint8; got {bgr.shape} {bgr.dtype}")
@@ -96,14 +99,18 @@ def hsv_bin_image(bgr: NDArray[np.uint8], cfg: HistogramConfig) -> NDArray[np.in
     if luts is None:
         luts = _LUT_CACHE.setdefault(cfg, _luts(cfg))
     hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
+    if luts[0].dtype == np.uint8:
+        h, s, v = cv2.split(hsv)
+        return cv2.add(cv2.add(cv2.LUT(h, luts[0]), cv2.LUT(s, luts[1])), cv2.LUT(v, luts[2]))
     return luts[0][hsv[..., 0]] + luts[1][hsv[..., 1]] + luts[2][hsv[..., 2]]
 
 
-def intensity_bin_image(gray: NDArray[np.uint8], cfg: HistogramConfig) -> NDArray[np.int32]:
-    """Bin index ``floor(I * bins / 256)`` of every pixel of an 8-bit grey image."""
+def intensity_bin_image(gray: NDArray[np.uint8], cfg: HistogramConfig) -> np.ndarray:
+    """Bin index ``floor(I * bins / 256)`` of every pixel of an 8-bit grey image (uint8)."""
     if gray.ndim != 2 or gray.dtype != np.uint8:
         raise ValueError(f"gray must be (H, W) uint8; got {gray.shape} {gray.dtype}")
-    return (gray.astype(np.int32) * cfg.intensity_bins) >> 8
+    lut = ((np.arange(256) * cfg.intensity_bins) >> 8).astype(np.uint8)
+    return cv2.LUT(gray, lut)
 
 
 @dataclass(frozen=True)

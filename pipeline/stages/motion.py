@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.stages import kalman
+
 
 @dataclass(frozen=True)
 class LinearFit:
@@ -53,3 +55,29 @@ def fit_linear_motion(history: np.ndarray, at_frame: float) -> LinearFit:
     dt = at_frame - t.mean()
     return LinearFit(float(h[:, 1].mean() + vx * dt), float(h[:, 2].mean() + vy * dt), vx, vy,
                      float(np.median(h[:, 3])), float(np.median(h[:, 4])))
+
+
+def hold_rates(kf: kalman.GaussianState, kcfg: kalman.KalmanConfig) -> kalman.GaussianState:
+    """Zero the size rates and all accelerations: a hidden target coasts at constant velocity and size."""
+    x = kf.x.copy()
+    x[6:8] = 0.0
+    if kcfg.order == 3:
+        x[8:] = 0.0
+    return kalman.GaussianState(x, kf.P)
+
+
+def coast_start(history: tuple[tuple[float, float, float, float, float], ...], prior: kalman.GaussianState,
+                frame: int, max_age_frames: int, drop_newest: int = 0) -> kalman.GaussianState | None:
+    """State to coast from when an occlusion starts: position, velocity and size from a straight
+    line through the recent clean measurements ``(frame, cx, cy, w, h)``, leaving out the
+    ``drop_newest`` newest (an occluder often cuts the target before the cut is detected). None when
+    fewer than 4 remain, the newest is older than ``max_age_frames``, or ``max_age_frames`` is 0."""
+    hist = np.asarray(history, float).reshape(-1, 5)
+    if drop_newest and hist.shape[0] - drop_newest >= 4:
+        hist = hist[:-drop_newest]
+    if max_age_frames == 0 or hist.shape[0] < 4 or frame - hist[-1, 0] > max_age_frames:
+        return None
+    fit = fit_linear_motion(hist, frame)
+    x = np.zeros_like(prior.x)
+    x[:6] = (fit.cx, fit.cy, fit.w, fit.h, fit.vx, fit.vy)
+    return kalman.GaussianState(x, prior.P)

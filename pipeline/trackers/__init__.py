@@ -5,12 +5,14 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from pipeline.errors import InputError
+from pipeline.trackers import dual as _dual
 from pipeline.trackers import kalman_camshift as _kc
 from pipeline.trackers import meanshift as _meanshift
 from pipeline.trackers.base import Engine, FunctionalEngine
 from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
 
 _FACTORIES: dict[str, Callable[[object], Engine]] = {
+    "dual": lambda cfg: FunctionalEngine("dual", _dual.init, _dual.step, cfg),
     "meanshift": lambda cfg: FunctionalEngine("meanshift", _meanshift.init, _meanshift.step, cfg),
     "kalman-camshift": lambda cfg: FunctionalEngine("kalman-camshift", _kc.init, _kc.step, cfg),
     "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),  # type: ignore[attr-defined]
@@ -19,7 +21,7 @@ _FACTORIES: dict[str, Callable[[object], Engine]] = {
     "kcf": lambda cfg: OpenCVEngine("kcf", cfg.opencv),  # type: ignore[attr-defined]
 }
 PEERS = ("camshift", "mil", "csrt", "kcf")
-DEFAULT_TRACKER = "meanshift"
+DEFAULT_TRACKER = "dual"
 
 
 def tracker_names() -> list[str]:

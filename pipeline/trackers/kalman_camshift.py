@@ -56,7 +56,7 @@ import numpy as np
 
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
-from pipeline.stages.motion import fit_linear_motion
+from pipeline.stages.motion import coast_start, hold_rates
 from pipeline.stages.camshift import back_project, box_mask, camshift, feature, histogram, kernel_masked_histogram, to_hsv
 from pipeline.stages.histogram import bhattacharyya, bhattacharyya_distance
 from pipeline.stages.occlusion import AreaReference, Grade, grade_occlusion, is_lost, next_severe_run
@@ -114,28 +114,6 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple
     return KCState(tuple(states), channel), FrameResult(frames.index, tuple(results))
 
 
-def _hold_rates(kf: kalman.GaussianState, kcfg: kalman.KalmanConfig) -> kalman.GaussianState:
-    """Zero the size rates and all accelerations, so a hidden target coasts at constant velocity and size."""
-    x = kf.x.copy()
-    x[6:8] = 0.0
-    if kcfg.order == 3:
-        x[8:] = 0.0
-    return kalman.GaussianState(x, kf.P)
-
-
-def coast_start(t: KCTarget, prior: kalman.GaussianState, frame: int, cfg_o: object,
-                kcfg: kalman.KalmanConfig) -> kalman.GaussianState | None:
-    """State to coast from when an occlusion starts: position, velocity and size from a straight
-    line through the recent clean measurements (None when they are too few or too old)."""
-    hist = np.asarray(t.history, float).reshape(-1, 5)
-    if hist.shape[0] < 4 or frame - hist[-1, 0] > cfg_o.rewind_frames or cfg_o.rewind_frames == 0:  # type: ignore[attr-defined]
-        return None
-    fit = fit_linear_motion(hist, frame)
-    x = np.zeros_like(prior.x)
-    x[:6] = (fit.cx, fit.cy, fit.w, fit.h, fit.vx, fit.vy)
-    return kalman.GaussianState(x, prior.P)
-
-
 def _clip_center(box: BBox, width: int, height: int) -> BBox:
     """Move a box so that at least half of it lies inside the frame."""
     cx = min(max(box.cx, 0.0), float(width))
@@ -179,7 +157,7 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
     H, R = kalman.measurement_model(kcfg)
     h, w = image.shape[:2]
     missing = t.status != TargetStatus.TRACKING
-    prior = kalman.predict(_hold_rates(t.kf, kcfg) if missing else t.kf, F, Q)
+    prior = kalman.predict(hold_rates(t.kf, kcfg) if missing else t.kf, F, Q)
     pbox = prior.box
     window = _search_window(pbox, ocfg.missing_search_scale if missing else ocfg.search_scale, w, h)
     margin = 12 + 0.25 * max(window.w, window.h)  # CamShift grows the window by 10 px for its moments
@@ -237,7 +215,7 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
         history = (*t.history, (float(frame), found.cx, found.cy, found.w, found.h))[-ocfg.history_frames:]
     if status.is_occluded and not missing:
         events.append(Event(EventKind.OCCLUSION_START, f"T{t.id} {status} (d={d:.2f}, area={area:.0f})", (t.id,)))
-        restart = coast_start(t, prior, frame, ocfg, kcfg)
+        restart = coast_start(t.history, prior, frame, ocfg.rewind_frames)
         if restart is not None:  # discard the measurements the occluder was dragging
             kf = restart
             out = kf.box if status == TargetStatus.OCCLUDED_PARTIAL else BBox.from_center(

@@ -1,0 +1,284 @@
+"""The IR contour stage of the dual tracker: a DRLSE level set on a region around the target.
+
+:func:`extract_contour` crops the IR frame around the expected box, starts the level set
+either cold (a binary step on the expected box enlarged ``cold_start_scale`` times; alpha > 0
+shrinks it onto the target) or warm (the previous frame's level-set function moved by the
+target's displacement, clipped to +-c0), evolves it (``pipeline.stages.levelset``), and
+reads the result: connected components of ``phi < 0``; the target is the component with
+most pixels inside the expected box, together with the smaller parts (limbs cut off by the
+length term) that lie mostly inside it. Its box is measured at sub-pixel precision from
+the zero crossings of phi. Several separate components mean several objects
+(``ContourResult.components`` lists them all).
+
+Failures are results, not exceptions (``ContourResult.reason``): ``no-component`` (nothing
+overlaps the expected box), ``leak`` (the selection touches the region border),
+``collapse`` (its box is under ``min_area_fraction`` of the expected box), ``too-large``
+(over ``max_area_ratio`` of it, e.g. merged with a warm neighbour), ``shape-change`` (width
+or height off by more than ``max_dimension_ratio``) and ``low-contrast``
+(its mean IR differs from the surrounding ring by under ``min_contrast`` grey levels,
+thermal crossover).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from pipeline.stages.levelset import LevelSetConfig, box_step, edge_map, evolve
+from pipeline.types import BBox, Points
+
+
+@dataclass(frozen=True)
+class ContourConfig:
+    """Region, initialisation and failure tests of the contour stage.
+
+    Parameters
+    ----------
+    roi_margin_px : float
+        The region is the expected box grown per side by max(this, ``roi_margin_fraction``
+        x its size), px, >= 4; default 10. Keeps the Neumann border away from the contour.
+    roi_margin_fraction : float
+        See ``roi_margin_px``, in [0, 2]; default 0.35.
+    cold_start_scale : float
+        A cold start begins from the expected box times this, in [1, 2]; default 1.35
+        (algorithms.md §1.6: 1.3-1.5).
+    warm_start : bool
+        Beyond the paper: start from the previous frame's level-set function moved by the
+        target's displacement when there is one; default True.
+    warm_dilate_px : float
+        A warm start begins this far outside the previous contour (a signed distance of
+        its inside, offset outward), so the balloon term can shrink it back onto the edges
+        and a part lost in one frame can be regained in the next, px, >= 0; default 3
+        (algorithms.md §1.6 suggests 4-8 px with alpha 1.5).
+    min_area_fraction : float
+        Collapse below this share of the expected box area, in (0, 1); default 0.3.
+    max_area_ratio : float
+        Too large above this multiple of the expected box area, > 1; default 2.2.
+    min_contrast : float
+        Low contrast when the target's mean IR differs from the ring around it by less
+        than this, grey levels, >= 0; default 6. Increasing it gives up on the IR channel
+        earlier during thermal crossover.
+    part_fraction : float
+        A further component joins the target when this share of its box lies inside the
+        expected box (grown 15 %), in (0, 1]; default 0.6.
+    max_dimension_ratio : float
+        ``shape-change`` when the contour box's width or height differs from the expected
+        box's by more than this factor, > 1; default 1.45. (A contour that kept half a
+        body can have a plausible area and the wrong shape.)
+    closing_fraction : float
+        Beyond the paper: a grey-level closing (elliptical element of this share of the
+        target's width) is applied to the IR region before the edge map, so thin parts
+        (legs, arms) merge into the body instead of being cut by the length term;
+        in [0, 1], default 0.25, 0 disables it. Measured on synthetic people: mean box
+        IoU from a cold start 0.79 without, 0.86 with.
+    """
+
+    roi_margin_px: float = 10.0
+    roi_margin_fraction: float = 0.35
+    cold_start_scale: float = 1.35
+    warm_start: bool = True
+    warm_dilate_px: float = 3.0
+    min_area_fraction: float = 0.3
+    max_area_ratio: float = 2.2
+    min_contrast: float = 6.0
+    part_fraction: float = 0.6
+    max_dimension_ratio: float = 1.45
+    closing_fraction: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not self.roi_margin_px >= 4:
+            raise ValueError(f"contour.roi_margin_px must be >= 4; got {self.roi_margin_px!r}")
+        if not 0 <= self.roi_margin_fraction <= 2:
+            raise ValueError(f"contour.roi_margin_fraction must be in [0, 2]; got {self.roi_margin_fraction!r}")
+        if not self.warm_dilate_px >= 0:
+            raise ValueError(f"contour.warm_dilate_px must be >= 0; got {self.warm_dilate_px!r}")
+        if not 1 <= self.cold_start_scale <= 2:
+            raise ValueError(f"contour.cold_start_scale must be in [1, 2]; got {self.cold_start_scale!r}")
+        if not 0 < self.min_area_fraction < 1:
+            raise ValueError(f"contour.min_area_fraction must be in (0, 1); got {self.min_area_fraction!r}")
+        if not self.max_area_ratio > 1:
+            raise ValueError(f"contour.max_area_ratio must be > 1; got {self.max_area_ratio!r}")
+        if not self.min_contrast >= 0:
+            raise ValueError(f"contour.min_contrast must be >= 0; got {self.min_contrast!r}")
+        if not self.max_dimension_ratio > 1:
+            raise ValueError(f"contour.max_dimension_ratio must be > 1; got {self.max_dimension_ratio!r}")
+        if not 0 <= self.closing_fraction <= 1:
+            raise ValueError(f"contour.closing_fraction must be in [0, 1]; got {self.closing_fraction!r}")
+        if not 0 < self.part_fraction <= 1:
+            raise ValueError(f"contour.part_fraction must be in (0, 1]; got {self.part_fraction!r}")
+
+
+@dataclass(frozen=True)
+class LevelSetMemory:
+    """The level-set function of a frame and where its region lay (frame px of its corner)."""
+
+    phi: np.ndarray
+    origin: tuple[int, int]
+
+
+@dataclass(frozen=True)
+class ContourResult:
+    """Outcome of :func:`extract_contour` (boxes and contours in frame px)."""
+
+    ok: bool
+    reason: str
+    box: BBox | None
+    contour: tuple[Points, ...]
+    iterations: int
+    contrast: float
+    memory: LevelSetMemory
+    components: tuple[BBox, ...] = field(default_factory=tuple)
+    warm: bool = False
+
+
+def region(expected: BBox, cfg: ContourConfig, width: int, height: int) -> tuple[int, int, int, int]:
+    """Integer ``(x0, y0, x1, y1)`` of the level-set region around ``expected``, clipped."""
+    mx = max(cfg.roi_margin_px, cfg.roi_margin_fraction * expected.w)
+    my = max(cfg.roi_margin_px, cfg.roi_margin_fraction * expected.h)
+    x0 = max(int(np.floor(expected.x - mx)), 0)
+    y0 = max(int(np.floor(expected.y - my)), 0)
+    x1 = min(int(np.ceil(expected.x2 + mx)), width)
+    y1 = min(int(np.ceil(expected.y2 + my)), height)
+    return x0, y0, max(x1, x0 + 1), max(y1, y0 + 1)
+
+
+def warm_phi(memory: LevelSetMemory, shift: tuple[float, float], origin: tuple[int, int], shape: tuple[int, int],
+             c0: float, dilate_px: float = 0.0) -> np.ndarray:
+    """The previous phi moved by ``shift`` (frame px) into a region at ``origin``, its zero level moved
+    ``dilate_px`` outward (through a signed distance of its inside), clipped to +-c0."""
+    tx = origin[0] - memory.origin[0] - shift[0]
+    ty = origin[1] - memory.origin[1] - shift[1]
+    M = np.array([[1.0, 0.0, tx], [0.0, 1.0, ty]], np.float32)
+    phi = cv2.warpAffine(memory.phi, M, (shape[1], shape[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=float(c0))
+    if dilate_px > 0:  # distance outside the previous inside, offset outward; flat -c0 inside
+        inside = phi < 0
+        d_out = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 3)
+        phi = np.where(inside, np.float32(-c0), d_out - np.float32(dilate_px))
+    return np.clip(phi, -c0, c0).astype(np.float32)
+
+
+def _subpixel_box(phi: np.ndarray, mask: np.ndarray) -> tuple[float, float, float, float]:
+    """Box (x0, y0, x1, y1) of ``mask`` with each edge at the farthest interpolated zero crossing of phi
+    along the rows (left, right) or columns (top, bottom) that reach the mask's extreme."""
+    c0, r0, bw, bh = cv2.boundingRect(mask.astype(np.uint8))
+    c1, r1 = c0 + bw - 1, r0 + bh - 1
+    h, w = phi.shape
+
+    def reach(inside: np.ndarray, outside: np.ndarray | None) -> float:
+        # farthest fraction of a pixel beyond the inside pixel centres where phi crosses 0
+        if outside is None or inside.size == 0:
+            return 0.5
+        d = outside - inside
+        frac = np.where(d > 0, np.clip(-inside / np.where(d > 0, d, 1.0), 0.0, 1.0), 0.5)
+        return float(frac.max())
+
+    rl = np.flatnonzero(mask[:, c0])
+    left = c0 + 0.5 - reach(phi[rl, c0], phi[rl, c0 - 1] if c0 > 0 else None)
+    rr = np.flatnonzero(mask[:, c1])
+    right = c1 + 0.5 + reach(phi[rr, c1], phi[rr, c1 + 1] if c1 < w - 1 else None)
+    ct = np.flatnonzero(mask[r0])
+    top = r0 + 0.5 - reach(phi[r0, ct], phi[r0 - 1, ct] if r0 > 0 else None)
+    cb = np.flatnonzero(mask[r1])
+    bottom = r1 + 0.5 + reach(phi[r1, cb], phi[r1 + 1, cb] if r1 < h - 1 else None)
+    return left, top, right, bottom
+
+
+def extract_contour(
+    ir: np.ndarray,
+    expected: BBox,
+    cfg: ContourConfig,
+    ls_cfg: LevelSetConfig,
+    memory: LevelSetMemory | None = None,
+    shift: tuple[float, float] = (0.0, 0.0),
+    cold_init: BBox | None = None,
+) -> ContourResult:
+    """Level-set contour of the target expected at ``expected`` (frame px) in the IR frame ``ir``.
+
+    Parameters
+    ----------
+    ir : (H, W) uint8
+        Infrared frame.
+    expected : BBox
+        Where the target should be (mean-shift position y1 with the current size).
+    cfg, ls_cfg : ContourConfig, LevelSetConfig
+        Parameters.
+    memory : LevelSetMemory, optional
+        Previous frame's level set (warm start when ``cfg.warm_start``).
+    shift : (dx, dy)
+        Displacement of the target since ``memory``, px.
+    cold_init : BBox, optional
+        Initial contour for a cold start (default: ``expected`` x ``cold_start_scale``),
+        e.g. the union of two merged targets.
+    """
+    if ir.ndim != 2:
+        raise ValueError(f"ir must be (H, W); got shape {ir.shape}")
+    H, W = ir.shape
+    x0, y0, x1, y1 = region(expected, cfg, W, H)
+    roi = ir[y0:y1, x0:x1]
+    empty_mem = LevelSetMemory(np.zeros((1, 1), np.float32), (x0, y0))
+    if roi.shape[0] < 8 or roi.shape[1] < 8:
+        return ContourResult(False, "no-component", None, (), 0, 0.0, empty_mem)
+    k = int(round(cfg.closing_fraction * expected.w)) | 1
+    if cfg.closing_fraction > 0 and k >= 3:
+        roi = cv2.morphologyEx(roi, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    em = edge_map(roi, ls_cfg)
+    warm = cfg.warm_start and memory is not None and memory.phi.size > 1
+    if warm:
+        phi0 = warm_phi(memory, shift, (x0, y0), roi.shape, ls_cfg.step_height, cfg.warm_dilate_px)  # type: ignore[arg-type]
+        if not (phi0 < 0).any():
+            warm = False
+    if not warm:
+        init = (cold_init or expected.scaled(cfg.cold_start_scale)).shifted(-x0, -y0)
+        phi0 = box_step(roi.shape, init.as_tuple(), ls_cfg.step_height)
+    res = evolve(phi0, em, ls_cfg, warm=warm)
+    phi = res.phi
+    mem = LevelSetMemory(phi, (x0, y0))
+    mask = (phi < 0).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    comps = [BBox(float(stats[i, 0] + x0), float(stats[i, 1] + y0), float(stats[i, 2]), float(stats[i, 3]))
+             for i in range(1, n) if stats[i, 4] >= 4]
+    if n <= 1:
+        return ContourResult(False, "no-component", None, (), res.iterations, 0.0, mem, tuple(comps), warm)
+    ex = expected.shifted(-x0, -y0)
+    ex_mask = np.zeros(mask.shape, bool)
+    ex_mask[max(int(ex.y), 0):max(int(np.ceil(ex.y2)), 0), max(int(ex.x), 0):max(int(np.ceil(ex.x2)), 0)] = True
+    inside_counts = np.bincount(labels[ex_mask], minlength=n)
+    inside_counts[0] = 0
+    best = int(np.argmax(inside_counts))
+    if inside_counts[best] == 0:
+        return ContourResult(False, "no-component", None, (), res.iterations, 0.0, mem, tuple(comps), warm)
+    sel = labels == best
+    grown = ex.scaled(1.15)
+    for i in range(1, n):
+        if i == best or stats[i, 4] < 4:
+            continue
+        b = BBox(float(stats[i, 0]), float(stats[i, 1]), float(stats[i, 2]), float(stats[i, 3]))
+        if b.intersect(grown).area >= cfg.part_fraction * b.area:
+            sel |= labels == i
+    sel_u8 = sel.astype(np.uint8)
+    bx, by, bw, bh = cv2.boundingRect(sel_u8)
+    h, w = mask.shape
+    touches = by <= 1 or bx <= 1 or by + bh - 1 >= h - 2 or bx + bw - 1 >= w - 2
+    left, top, right, bottom = _subpixel_box(phi, sel)
+    box = BBox(left + x0, top + y0, right - left, bottom - top)
+    ring = cv2.dilate(sel_u8, np.ones((7, 7), np.uint8)).astype(bool) & ~sel
+    roi_f = roi.astype(np.float32)
+    contrast = float(roi_f[sel].mean() - roi_f[ring].mean()) if ring.any() else 0.0
+    cs, _ = cv2.findContours(sel_u8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    contour = tuple(c.reshape(-1, 2).astype(np.float64) + (x0 + 0.5, y0 + 0.5) for c in cs if len(c) >= 3)
+    reason = "ok"
+    if touches:
+        reason = "leak"
+    elif box.area < cfg.min_area_fraction * expected.area:
+        reason = "collapse"
+    elif box.area > cfg.max_area_ratio * expected.area:
+        reason = "too-large"
+    elif not (1 / cfg.max_dimension_ratio <= box.w / expected.w <= cfg.max_dimension_ratio
+              and 1 / cfg.max_dimension_ratio <= box.h / expected.h <= cfg.max_dimension_ratio):
+        reason = "shape-change"
+    elif abs(contrast) < cfg.min_contrast:
+        reason = "low-contrast"
+    return ContourResult(reason == "ok", reason, box, contour, res.iterations, contrast, mem, tuple(comps), warm)
