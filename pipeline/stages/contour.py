@@ -194,6 +194,7 @@ def extract_contour(
     memory: LevelSetMemory | None = None,
     shift: tuple[float, float] = (0.0, 0.0),
     cold_init: BBox | None = None,
+    part_width: float | None = None,
 ) -> ContourResult:
     """Level-set contour of the target expected at ``expected`` (frame px) in the IR frame ``ir``.
 
@@ -212,6 +213,9 @@ def extract_contour(
     cold_init : BBox, optional
         Initial contour for a cold start (default: ``expected`` x ``cold_start_scale``),
         e.g. the union of two merged targets.
+    part_width : float, optional
+        Width of one target, for the closing (default: ``expected.w``); give it when
+        ``expected`` spans several targets, so the gap between them is not closed.
     """
     if ir.ndim != 2:
         raise ValueError(f"ir must be (H, W); got shape {ir.shape}")
@@ -221,7 +225,7 @@ def extract_contour(
     empty_mem = LevelSetMemory(np.zeros((1, 1), np.float32), (x0, y0))
     if roi.shape[0] < 8 or roi.shape[1] < 8:
         return ContourResult(False, "no-component", None, (), 0, 0.0, empty_mem)
-    k = int(round(cfg.closing_fraction * expected.w)) | 1
+    k = int(round(cfg.closing_fraction * (part_width or expected.w))) | 1
     if cfg.closing_fraction > 0 and k >= 3:
         roi = cv2.morphologyEx(roi, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
     em = edge_map(roi, ls_cfg)

@@ -1,0 +1,88 @@
+"""The dual tracker: the issue's sequence-level acceptance, the single-channel modes, eq. 7, observability."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from pipeline.config import load_config
+from pipeline.errors import ConfigError
+from pipeline.run import RunOptions, run_track, track
+from pipeline.trackers.dual import DualConfig, scale_update
+from tests.rrd_helpers import open_store, rows
+
+SCENES = ("shadows", "dusk", "approach", "lookalike", "hot-distractor", "crossover", "occluder", "fast")
+
+
+def test_scale_update_eq7():
+    assert scale_update((20.0, 40.0), (30.0, 50.0), 0.2) == pytest.approx((22.0, 42.0))
+    assert scale_update((20.0, 40.0), (30.0, 50.0), 0.0) == (20.0, 40.0)
+    assert scale_update((20.0, 40.0), (30.0, 50.0), 1.0) == (30.0, 50.0)
+
+
+def test_acceptance_on_the_synthetic_scenes(scene, tmp_path):
+    p20, auc = {}, {}
+    for name in SCENES:
+        res = run_track(scene(name), RunOptions(tracker="dual", out_dir=tmp_path / name, rrd=False, plots=False))
+        m = res.summary["metrics"]
+        p20[name], auc[name] = m["p20"], m["auc"]
+    assert min(p20.values()) >= 0.9, p20
+    assert np.mean(list(p20.values())) >= 0.95, p20
+    assert np.mean(list(auc.values())) >= 0.75, auc
+
+
+def test_beats_the_colour_only_tracker_where_colour_fails(scene):
+    """Shadows and a pillar defeat visible mean shift (measured P@20 0.44 and 0.50), darkness ruins its box
+    (AUC 0.38); the IR contour and the motion prior keep the target."""
+    from pipeline.eval.single import center_errors, ious, success_curve
+    from pipeline.io.sequence import open_sequence
+
+    def score(d, trk):
+        gt = open_sequence(d).truth.primary()[1]
+        boxes = np.array([r.targets[0].box.as_tuple() for r in track(d, tracker=trk)])
+        e = center_errors(boxes, gt)
+        return float(np.mean(e[~np.isnan(e)] <= 20)), float(np.mean(success_curve(ious(boxes, gt))))
+
+    for name in ("shadows", "occluder"):
+        dual, ms = score(scene(name), "dual"), score(scene(name), "meanshift")
+        assert dual[0] >= 0.95 and ms[0] < 0.7, (name, dual, ms)
+    dual, ms = score(scene("dusk"), "dual"), score(scene("dusk"), "meanshift")
+    assert dual[1] >= ms[1] + 0.3, (dual, ms)
+
+
+def test_contours_statuses_and_reasons_are_recorded(scene, tmp_path):
+    out = run_track(scene("crossover"), RunOptions(tracker="dual", out_dir=tmp_path / "r")).out_dir
+    table = list(csv.DictReader((out / "targets.csv").read_text().splitlines()))
+    sources = {r["source"] for r in table}
+    assert {"levelset", "meanshift"} <= sources  # the IR fades: colour carries the target for a while
+    assert any("contour-low-contrast" in r["model_update"] for r in table)
+    assert all("levelset=" in r["iterations"] and "meanshift=" in r["iterations"] for r in table[1:])
+    assert any(r["model_update"].startswith("updated:") for r in table)
+    store = open_store(out / "run.rrd")
+    strips = rows(store, "/infrared/contours", ["LineStrips2D:strips"])
+    assert strips.num_rows == 240
+    assert "/targets/1/status" in {str(p) for p in store.schema().entity_paths()}
+
+
+def test_ir_only_mode_on_real_thermal_footage(realdata, tmp_path):
+    res = run_track(realdata / "vottir-horse", RunOptions(tracker="dual", out_dir=tmp_path / "h", plots=False))
+    assert res.summary["channels"] == ["infrared"] and res.complete
+    table = list(csv.DictReader((res.out_dir / "targets.csv").read_text().splitlines()))
+    assert "levelset" in {r["source"] for r in table}
+    assert res.summary["metrics"]["p20"] >= 0.5
+
+
+def test_visible_only_mode_is_the_meanshift_engine(realdata, tmp_path):
+    a = run_track(realdata / "otb-crossing", RunOptions(tracker="dual", out_dir=tmp_path / "d", rrd=False, plots=False))
+    b = run_track(realdata / "otb-crossing", RunOptions(tracker="meanshift", out_dir=tmp_path / "m", rrd=False, plots=False))
+    assert (a.out_dir / "tracks.csv").read_text() == (b.out_dir / "tracks.csv").read_text()
+
+
+@pytest.mark.parametrize("item", ["dual.scale_rate=1.5", "dual.max_missing_frames=0", "levelset.timestep=9",
+                                  "contour.cold_start_scale=0.5", "model_update.rank_rule=best"])
+def test_bad_configs_rejected(item):
+    with pytest.raises(ConfigError):
+        load_config(None, [item])
+    assert DualConfig().scale_rate == 0.2
