@@ -6,7 +6,12 @@ tracker then runs the full ``track`` pipeline (decode + track + CSV + .rrd) into
 folder; its ``fps_tracking`` (frames / seconds inside the tracker) and
 ``fps_end_to_end`` come from that run, P@20 and AUC from its evaluation. Speeds are
 meant to be read as ratios measured in the same run (against the decode-only rate and
-against the peers), never as absolute promises.
+against the peers), never as absolute promises. With several targets the table also
+has identity purity, ID switches, MOTA and IDF1.
+
+``run_scaling`` (``dualtrack bench --targets 1,2,4,8``) measures how the cost grows with
+the number of targets: it renders the ``walkers<n>`` scenes (n people, each in its own
+lane, the same work per target) and reports fps and the tracker's time per target.
 """
 
 from __future__ import annotations
@@ -81,6 +86,7 @@ def run_bench(
                 row.update({
                     "p20": m.get("p20") if isinstance(m, dict) else None,
                     "auc": m.get("auc") if isinstance(m, dict) else None,
+                    **_multi_metrics(m),
                     "fps_tracking": s.get("fps_tracking"),
                     "fps_end_to_end": s.get("fps_end_to_end"),
                     "stage_seconds": s.get("stage_seconds"),
@@ -96,6 +102,69 @@ def run_bench(
         if tmp is not None:
             tmp.cleanup()
     return rows
+
+
+def _multi_metrics(m: object) -> dict[str, object]:
+    """Purity, ID switches, MOTA and IDF1 of a many-target evaluation (empty for one target)."""
+    if not isinstance(m, dict) or "purity" not in m:
+        return {}
+    pur = m["purity"]
+    return {"purity": pur.get("overall") if isinstance(pur, dict) else None, "id_switches": m.get("id_switches"),
+            "mota": m.get("mota"), "idf1": m.get("idf1")}
+
+
+def run_scaling(counts: list[int], trackers: list[str] | None = None, out: Path | None = None, seed: int = 0,
+                sets: list[str] | None = None, config_path: Path | None = None) -> list[dict[str, object]]:
+    """fps of each tracker on the ``walkers<n>`` scene for every n in ``counts``."""
+    from pipeline.synthetic import SCENARIOS, synthesize
+
+    for n in counts:
+        if f"walkers{n}" not in SCENARIOS:
+            have = sorted(int(k[7:]) for k in SCENARIOS if k.startswith("walkers"))
+            raise InputError(f"no scene with {n} targets; --targets takes some of {','.join(map(str, have))}")
+    tmp = None
+    if out is None:
+        tmp = tempfile.TemporaryDirectory(prefix="dualtrack-scaling-")
+        out = Path(tmp.name)
+    try:
+        dirs = []
+        for n in counts:
+            d = out / "scenes" / f"walkers{n}"
+            if not (d / "scene.json").exists():
+                synthesize(f"walkers{n}", d, seed=seed, progress=False)
+            dirs.append(d)
+        rows = run_bench(dirs, trackers or ["dual"], out=out / "runs", sets=sets, config_path=config_path)
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+    base: dict[str, float] = {}
+    for r, n in zip(rows, [n for n in counts for _ in (trackers or ["dual"])], strict=True):
+        r["targets"] = n
+        fps = r.get("fps_tracking")
+        if isinstance(fps, int | float) and fps > 0:
+            r["ms_per_target"] = round(1000.0 / (fps * n), 3)
+            base.setdefault(str(r["tracker"]), float(r["ms_per_target"]) if n == counts[0] else float("nan"))
+            b = base[str(r["tracker"])]
+            r["per_target_cost_vs_first"] = round(float(r["ms_per_target"]) / b, 2) if b == b else None
+    return rows
+
+
+def format_scaling(rows: list[dict[str, object]]) -> str:
+    """The fps-vs-targets table."""
+    lines = ["| tracker | targets | fps_tracking | ms per target | per-target cost vs fewest | P@20 | purity | ID sw. |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if "skipped" in r:
+            lines.append(f"| {r['tracker']} | {r['targets']} | skipped: {r['skipped']} |  |  |  |  |  |")
+            continue
+
+        def f(v: object, nd: int) -> str:
+            return f"{v:.{nd}f}" if isinstance(v, float) else ("" if v is None else str(v))
+
+        lines.append(f"| {r['tracker']} | {r['targets']} | {f(r.get('fps_tracking'), 1)} | {f(r.get('ms_per_target'), 2)} | "
+                     f"{f(r.get('per_target_cost_vs_first'), 2)} | {f(r.get('p20'), 3)} | {f(r.get('purity'), 3)} | "
+                     f"{f(r.get('id_switches'), 0)} |")
+    return "\n".join(lines)
 
 
 def _add_peer_ratios(rows: list[dict[str, object]]) -> None:
@@ -118,7 +187,10 @@ def _add_peer_ratios(rows: list[dict[str, object]]) -> None:
 
 def format_table(rows: list[dict[str, object]]) -> str:
     """The bench table as aligned text (Markdown-compatible)."""
+    multi = any("purity" in r for r in rows)
     head = ["sequence", "tracker", "P@20", "AUC", "fps_tracking", "fps_end_to_end", "fps_decode", "e2e/decode"]
+    if multi:
+        head += ["purity", "ID sw.", "MOTA", "IDF1"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
     def f(v: object, nd: int = 3) -> str:
@@ -126,10 +198,13 @@ def format_table(rows: list[dict[str, object]]) -> str:
 
     for r in rows:
         if "skipped" in r:
-            lines.append(f"| {r['sequence']} | {r['tracker']} | skipped: {r['skipped']} |  |  |  |  |  |")
+            lines.append(f"| {r['sequence']} | {r['tracker']} | skipped: {r['skipped']} |" + "  |" * (len(head) - 3))
             continue
-        lines.append("| " + " | ".join([
+        cells = [
             str(r["sequence"]), str(r["tracker"]), f(r.get("p20")), f(r.get("auc")), f(r.get("fps_tracking"), 1),
             f(r.get("fps_end_to_end"), 1), f(r.get("fps_decode"), 1), f(r.get("end_to_end_vs_decode"), 2),
-        ]) + " |")
+        ]
+        if multi:
+            cells += [f(r.get("purity")), f(r.get("id_switches")), f(r.get("mota")), f(r.get("idf1"))]
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -68,7 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="overwrite existing sequence folders")
 
     p = sub.add_parser("bench", help="compare trackers on sequences: accuracy and speed on one core")
-    p.add_argument("seq_dirs", type=Path, nargs="+")
+    p.add_argument("seq_dirs", type=Path, nargs="*")
+    p.add_argument("--targets", default=None, metavar="N,N,...",
+                   help="instead of sequences: fps vs number of targets on synthetic scenes (e.g. 1,2,4,8)")
     p.add_argument("--trackers", default=None, help="comma-separated tracker names")
     p.add_argument("--json", type=Path, help="also write the table as JSON")
     p.add_argument("--out", type=Path, help="keep the run folders here (default: a temporary folder)")
@@ -146,9 +148,26 @@ def _cmd_synth(a: argparse.Namespace) -> int:
 
 
 def _cmd_bench(a: argparse.Namespace) -> int:
+    import json
+
     from pipeline.bench import format_table, run_bench
+    from pipeline.errors import InputError
 
     trackers = [t.strip() for t in (a.trackers or "").split(",") if t.strip()] or None
+    if a.targets:
+        from pipeline.bench import format_scaling, run_scaling
+
+        try:
+            counts = [int(v) for v in a.targets.split(",") if v.strip()]
+        except ValueError:
+            raise InputError(f"--targets takes comma-separated integers; got {a.targets!r}") from None
+        rows = run_scaling(counts, trackers, out=a.out, sets=a.set, config_path=a.config)
+        if a.json:
+            a.json.write_text(json.dumps({"rows": rows}, indent=2) + "\n")
+        print(format_scaling(rows))
+        return 0
+    if not a.seq_dirs:
+        raise InputError("bench needs sequence folders, or --targets N,N,... for the fps-vs-targets table")
     rows = run_bench(a.seq_dirs, trackers, out=a.out, json_path=a.json, sets=a.set, config_path=a.config,
                      channel=a.channel, align=a.align, gt_base=a.gt_base)
     print(format_table(rows))

@@ -3,8 +3,8 @@
 Entity paths (design.md): ``visible/image``, ``infrared/image`` (the source JPEG/PNG
 bytes passed through as ``EncodedImage``; frames without source bytes, e.g. from a
 video, are JPEG-encoded once), ``visible/targets`` and ``infrared/targets`` (Boxes2D,
-class id = track id, label ``T<id> <status>``; occluded boxes are drawn with a thinner
-line), ``infrared/contours`` (LineStrips2D), ``events`` (TextLog), ``targets/<id>/status``
+class id = track id, label ``T<id> <status>``; occluded boxes, and merged targets other than the merge's
+foreground, are drawn with a thinner line), ``infrared/contours`` (LineStrips2D), ``events`` (TextLog), ``targets/<id>/status``
 (StateChange), ``metrics/<id>/center_error_px`` (Scalars, when truth exists),
 ``timing/<stage>_ms``, and the resolved config as a static ``config`` document.
 
@@ -155,7 +155,7 @@ class RerunSink:
             boxes,
             [class_id(t.id) for t in shown],
             [f"T{t.id} {t.status.value}" for t in shown],
-            [-1.0 if t.status.is_occluded or t.status == TargetStatus.TENTATIVE else -2.5 for t in shown],
+            [-1.0 if _drawn_thin(t) else -2.5 for t in shown],
         ))
         for t in shown:
             for name, ob in t.overlays.items():
@@ -260,3 +260,10 @@ class RerunSink:
 
     def __exit__(self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
         self.close()
+
+
+def _drawn_thin(t) -> bool:
+    """Occluded, tentative, and merged targets other than the merge's foreground get thin boxes."""
+    if t.status == TargetStatus.MERGED:
+        return t.diagnostics.get("role", 2.0) != 1.0
+    return t.status.is_occluded or t.status == TargetStatus.TENTATIVE

@@ -66,6 +66,13 @@ def hold_rates(kf: kalman.GaussianState, kcfg: kalman.KalmanConfig) -> kalman.Ga
     return kalman.GaussianState(x, kf.P)
 
 
+def stop(kf: kalman.GaussianState) -> kalman.GaussianState:
+    """Zero every rate (velocity, size rate, acceleration): the state of a target given up as lost."""
+    x = kf.x.copy()
+    x[4:] = 0.0
+    return kalman.GaussianState(x, kf.P)
+
+
 def coast_start(history: tuple[tuple[float, float, float, float, float], ...], prior: kalman.GaussianState,
                 frame: int, max_age_frames: int, drop_newest: int = 0) -> kalman.GaussianState | None:
     """State to coast from when an occlusion starts: position, velocity and size from a straight

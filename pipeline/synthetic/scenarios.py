@@ -215,6 +215,22 @@ def _pole_fast() -> Scene:
     )
 
 
+
+def walkers(n: int) -> Scene:
+    """``n`` people (1-8), each walking to and fro in its own cell of a 2 x 4 grid: the same
+    per-target work at every n, for measuring how the cost grows with the number of targets."""
+    if not 1 <= n <= 8:
+        raise ValueError(f"walkers takes 1 to 8 people; got {n}")
+    palettes = (RED, GREEN, YELLOW, PURPLE, ORANGE, RED, GREEN, YELLOW)
+    actors = []
+    for k in range(n):
+        col, row = k % 2, k // 2
+        x0, y = 40.0 + 160 * col, 36.0 + 56 * row
+        actors.append(Actor("person", 44, keyframes([(1, x0, y, 1.0), (60, x0 + 80, y, 1.0), (120, x0, y, 1.0)]),
+                            target_id=k + 1, palette=palettes[k], facing=1))
+    return Scene(f"walkers{n}", f"{n} people walking in separate lanes (cost vs number of targets)", 320, 240, 120,
+                 tuple(actors))
+
 SCENARIO_BUILDERS: dict[str, Callable[[], Scene]] = {
     "dusk": _dusk,
     "shadows": _shadows,
@@ -231,4 +247,5 @@ SCENARIO_BUILDERS: dict[str, Callable[[], Scene]] = {
     "occluded-static": _occluded_static,
     "occluded-moving": _occluded_moving,
     "pole-fast": _pole_fast,
+    **{f"walkers{n}": (lambda n=n: walkers(n)) for n in (1, 2, 4, 8)},
 }

@@ -46,10 +46,12 @@ import numpy as np
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
 from pipeline.stages.contour import ContourResult, LevelSetMemory, extract_contour
+from pipeline.stages.merge import (associate, association_cost, choose_foreground_stable, eq11, kmeans_shares, lookalike_sets,
+                                   merge_groups)
 from pipeline.stages.histogram import appearance_bins, bhattacharyya, kernel_histogram, kernel_window, search_roi
 from pipeline.stages.meanshift import mean_shift
 from pipeline.stages.model_update import UpdateDecision, selective_update, should_update_model
-from pipeline.stages.motion import coast_start, hold_rates
+from pipeline.stages.motion import coast_start, hold_rates, stop
 from pipeline.trackers import meanshift as ms_engine
 from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
 
@@ -106,6 +108,41 @@ class DualConfig:
     onset_frames : int
         The newest clean measurements left out of that fit, which an occluder may already
         have been cutting before the cut was detected, in [0, 10]; default 4.
+    merge_handling : bool
+        Handle mutual occlusion as the paper does (eq. 10 merge test, foreground and
+        occluded roles, one level set over the merged blob, split and re-association);
+        default True. False tracks every target independently.
+    merge_position : str
+        Where the members of a merge are placed: ``eq11`` (the paper: the foreground at
+        its mean-shift position, an occluded target mirrored about the blob centre),
+        ``motion`` (the foreground as in the paper, occluded targets at their Kalman
+        prediction: the paper's future work, for long occlusions) or ``auto`` (default,
+        beyond the paper): look-alikes (see ``lookalike_rho``) by k-means on the merged
+        blob started from their predictions; every member whose own colour is clearly seen
+        (``merge_visible_rho``), and not where a better-matching member already is, at its
+        mean-shift position; the rest of a pair by eq. 11 (kept inside the blob) while the
+        blob is wider than the foreground alone, else on their motion state. Measured on
+        the synthetic crossings: ``edges`` (placing members on the blob's edges ordered by
+        their predictions) swapped crossing identities and ``share`` (the foreground from
+        its share of the blob) was worse than the paper; neither was kept.
+    lookalike_rho : float
+        Two targets whose colour models match at least this well (eq. 3) are look-alikes,
+        whose mean shifts cannot tell them apart inside a merge, in [0, 1]; default 0.85.
+    merge_visible_rho : float
+        In ``auto``, a merged member whose colour match reaches this is measured by its own
+        mean shift, in [0, 1]; default 0.75 (0.6 and 0.68 lowered purity on group3).
+    kmeans_iterations : int
+        Passes of the k-means that locates look-alikes in a merged blob, in [1, 50]; default 5.
+    role_margin : float
+        The foreground keeps its role until another member's colour match is higher by
+        this much, in [0, 1]; default 0.05 (look-alikes do not swap roles every frame).
+    split_min_area_fraction : float
+        A component of the merged blob counts as a separated target when its box covers
+        at least this share of the smallest member's usual box, in (0, 1); default 0.3.
+    association_motion_weight : float
+        Weight of the distance to each target's prediction (in target sizes) against the
+        colour dissimilarity when blobs are re-associated after a split, >= 0; default 1.
+        0 is the paper (colour only), which cannot separate look-alikes.
     """
 
     scale_rate: float = 0.2
@@ -124,6 +161,14 @@ class DualConfig:
     history_frames: int = 16
     rewind_frames: int = 8
     onset_frames: int = 4
+    merge_handling: bool = True
+    merge_position: str = "auto"
+    role_margin: float = 0.05
+    split_min_area_fraction: float = 0.3
+    association_motion_weight: float = 1.0
+    lookalike_rho: float = 0.85
+    merge_visible_rho: float = 0.75
+    kmeans_iterations: int = 5
 
     def __post_init__(self) -> None:
         for name in ("scale_rate", "colour_min_fraction", "colour_min_rho", "occlusion_rho", "reacquire_rho"):
@@ -142,6 +187,20 @@ class DualConfig:
             raise ValueError(f"dual.missing_search_scale must be in [1, 5]; got {self.missing_search_scale!r}")
         if not (isinstance(self.history_frames, int) and 2 <= self.history_frames <= 100):
             raise ValueError(f"dual.history_frames must be an integer in [2, 100]; got {self.history_frames!r}")
+        if self.merge_position not in ("auto", "eq11", "motion"):
+            raise ValueError(f"dual.merge_position must be auto, eq11 or motion; got {self.merge_position!r}")
+        for name in ("lookalike_rho", "merge_visible_rho"):
+            v = getattr(self, name)
+            if not 0 <= v <= 1:
+                raise ValueError(f"dual.{name} must be in [0, 1]; got {v!r}")
+        if not (isinstance(self.kmeans_iterations, int) and 1 <= self.kmeans_iterations <= 50):
+            raise ValueError(f"dual.kmeans_iterations must be an integer in [1, 50]; got {self.kmeans_iterations!r}")
+        if not 0 <= self.role_margin <= 1:
+            raise ValueError(f"dual.role_margin must be in [0, 1]; got {self.role_margin!r}")
+        if not 0 < self.split_min_area_fraction < 1:
+            raise ValueError(f"dual.split_min_area_fraction must be in (0, 1); got {self.split_min_area_fraction!r}")
+        if not self.association_motion_weight >= 0:
+            raise ValueError(f"dual.association_motion_weight must be >= 0; got {self.association_motion_weight!r}")
         if not (isinstance(self.onset_frames, int) and 0 <= self.onset_frames <= 10):
             raise ValueError(f"dual.onset_frames must be an integer in [0, 10]; got {self.onset_frames!r}")
         if not (isinstance(self.rewind_frames, int) and 0 <= self.rewind_frames <= 30):
@@ -166,9 +225,20 @@ class DualTarget:
 
 
 @dataclass(frozen=True)
+class GroupMemory:
+    """The level set of a merged group, kept for the next frame's warm start."""
+
+    members: tuple[int, ...]
+    memory: LevelSetMemory
+    center: tuple[float, float]
+    foreground: int
+
+
+@dataclass(frozen=True)
 class DualState:
     targets: tuple[DualTarget, ...]
     mode: str  # "dual" (visible + IR) or "ir"
+    groups: tuple[GroupMemory, ...] = ()
 
 
 def _colour_channel(frames: FramePair, mode: str) -> np.ndarray:
@@ -202,14 +272,39 @@ def step(state, frames: FramePair, cfg: object):
         return ms_engine.step(state, frames, cfg)
     t0 = time.perf_counter()
     timing: dict[str, float] = {}
+    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
+    steps = {t.id: colour_stage(frames, t, cfg, state.mode, timing) for t in state.targets}
+    # eq. 10 on the mean-shift positions; a member of a merge is tested at its prediction instead, since its
+    # mean shift may sit on whoever hides it (a look-alike, above all) and would hold the group together
+    live = {i: cs.box_prior if cs.t.status == TargetStatus.MERGED else cs.box1
+            for i, cs in steps.items() if cs.t.status != TargetStatus.LOST}
+    groups = merge_groups(live) if dcfg.merge_handling and len(live) > 1 else []
+    in_group = {i for g in groups for i in g}
+    done: dict[int, tuple[DualTarget, TargetResult, list[Event]]] = {}
+    new_groups = []
+    for g in groups:
+        out, mem = finish_group(frames, [steps[i] for i in g], cfg, state.mode, timing, state.groups)
+        done.update(out)
+        if mem is not None:
+            new_groups.append(mem)
+    for i, cs in steps.items():
+        if i in in_group:
+            continue
+        ev: list[Event] = []
+        start = None
+        if cs.t.status == TargetStatus.MERGED:  # its group dissolved without a visible split
+            ev.append(Event(EventKind.SPLIT, f"T{i} separated (merge test no longer holds)", (i,)))
+            start = cs.box_prior.center
+        done[i] = finish_single(frames, cs, cfg, state.mode, timing, start=start, events_in=ev)
     new, results, events = [], [], []
     for t in state.targets:
-        nt, r, ev = track_target(frames, t, cfg, state.mode, timing)
+        nt, r, ev = done[t.id]
         new.append(nt)
         results.append(r)
         events += ev
     timing["dual"] = time.perf_counter() - t0
-    return dataclasses.replace(state, targets=tuple(new)), FrameResult(frames.index, tuple(results), tuple(events), timing)
+    return (dataclasses.replace(state, targets=tuple(new), groups=tuple(new_groups)),
+            FrameResult(frames.index, tuple(results), tuple(events), timing))
 
 
 def _add(timing: dict[str, float], key: str, t0: float) -> float:
@@ -282,6 +377,11 @@ def _match_at(bins: np.ndarray, q: np.ndarray, box: BBox, roi0: tuple[int, int],
     return bhattacharyya(p / total, q) if total > 0 else 0.0
 
 
+def _outside(box: BBox, shape: tuple[int, ...]) -> bool:
+    """Less than a quarter of the box lies inside the frame."""
+    return box.clip(shape[1], shape[0]).area < 0.25 * box.area
+
+
 def contour_usable(c: ContourResult, dcfg: DualConfig) -> bool:
     """Whether the contour gives the position: all checks pass (default); without
     ``channel_weighting`` the contrast test is not applied; without ``contour_checks`` any
@@ -295,8 +395,34 @@ def contour_usable(c: ContourResult, dcfg: DualConfig) -> bool:
     return c.ok
 
 
-def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timing: dict[str, float]):
-    """One frame of the dual tracker for one target: (new state, result, events)."""
+@dataclass(frozen=True)
+class ColourStep:
+    """What the first half of a frame (prediction and mean shift, the paper's step 2) found for a target."""
+
+    t: DualTarget
+    prior: kalman.GaussianState
+    y0: tuple[float, float]
+    y1: tuple[float, float]
+    rho1: float
+    informative: bool
+    bright: float
+    bins: np.ndarray | None
+    roi0: tuple[int, int]
+    ms_iters: int
+
+    @property
+    def box1(self) -> BBox:
+        """The target's box at the mean-shift position y1."""
+        return BBox.from_center(self.y1[0], self.y1[1], self.t.size[0], self.t.size[1])
+
+    @property
+    def box_prior(self) -> BBox:
+        """The target's box at its predicted position."""
+        return BBox.from_center(float(self.prior.x[0]), float(self.prior.x[1]), self.t.size[0], self.t.size[1])
+
+
+def colour_stage(frames: FramePair, t: DualTarget, cfg: object, mode: str, timing: dict[str, float]) -> ColourStep:
+    """Motion prior y0 (or the previous y2) and mean shift in the colour channel -> y1 (step 2)."""
     dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
     kcfg = cfg.kalman  # type: ignore[attr-defined]
     ir = frames.infrared
@@ -346,12 +472,37 @@ def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timin
             rho1 = 0.0
     clock = _add(timing, "meanshift", clock)
 
+    return ColourStep(t, prior, y0, y1, rho1, informative, bright, bins, roi0, ms_iters)
+
+
+def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timing: dict[str, float]):
+    """One frame of the dual tracker for one independent target: (new state, result, events)."""
+    return finish_single(frames, colour_stage(frames, t, cfg, mode, timing), cfg, mode, timing)
+
+
+def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, timing: dict[str, float],
+                  start: tuple[float, float] | None = None, events_in: list[Event] | None = None):
+    """Steps 3-5 for one target: contour, measurement decision, scale, model and motion updates.
+
+    ``start`` forces where the contour starts (cold), as after a split."""
+    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
+    kcfg = cfg.kalman  # type: ignore[attr-defined]
+    ir = frames.infrared
+    assert ir is not None
+    t, prior, y0, y1, rho1 = cs.t, cs.prior, cs.y0, cs.y1, cs.rho1
+    informative, bright, bins, roi0, ms_iters = cs.informative, cs.bright, cs.bins, cs.roi0, cs.ms_iters
+    Hm, Rm = kalman.measurement_model(kcfg)
+    clock = time.perf_counter()
+
     # step 3: level-set contour in the IR frame around y1 (around y0 when the colour match is weak)
     colour_ok = informative and rho1 >= dcfg.colour_min_rho
     yc = y1 if (informative and rho1 >= dcfg.occlusion_rho) or not (dcfg.channel_weighting and dcfg.motion_prior) else y0
+    memory = t.memory
+    if start is not None:
+        yc, memory = start, None
     expected = BBox.from_center(yc[0], yc[1], t.size[0], t.size[1])
     shift = (yc[0] - t.memory_center[0], yc[1] - t.memory_center[1])
-    c: ContourResult = extract_contour(ir, expected, cfg.contour, cfg.levelset, t.memory, shift)  # type: ignore[attr-defined]
+    c: ContourResult = extract_contour(ir, expected, cfg.contour, cfg.levelset, memory, shift)  # type: ignore[attr-defined]
     contour_ok = contour_usable(c, dcfg)
     clock = _add(timing, "levelset", clock)
 
@@ -359,7 +510,7 @@ def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timin
     # (occlusion) and, where there is colour, matches the model at its own position; or, where only the IR has
     # faded (crossover), a strong colour match. An occluded target is taken back only by a clean measurement
     # near its prediction.
-    events: list[Event] = []
+    events: list[Event] = list(events_in or [])
     rho_c = float("nan")
     if contour_ok and informative and bins is not None:
         assert c.box is not None
@@ -371,7 +522,7 @@ def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timin
                     and (c.reason == "low-contrast" or not dcfg.channel_weighting and not contour_ok))
     occluded_before = t.status != TargetStatus.TRACKING
     candidate = c.box if contour_clean else (BBox.from_center(y1[0], y1[1], t.size[0], t.size[1]) if colour_clean else None)
-    if candidate is not None and occluded_before and not _near(candidate, prior.box, t, dcfg):
+    if candidate is not None and occluded_before and start is None and not _near(candidate, prior.box, t, dcfg):
         candidate = None
     if candidate is not None and occluded_before and informative and not contour_clean and rho1 < dcfg.reacquire_rho:
         candidate = None
@@ -385,7 +536,7 @@ def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timin
     else:
         evidence = contour_ok or (informative and rho1 >= dcfg.colour_min_rho)
         missing_n = t.missing + 1
-        if missing_n > dcfg.max_missing_frames:
+        if missing_n > dcfg.max_missing_frames or _outside(prior.box, ir.shape):
             status = TargetStatus.LOST
         else:
             status = TargetStatus.OCCLUDED_PARTIAL if evidence else TargetStatus.OCCLUDED_SEVERE
@@ -439,12 +590,15 @@ def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timin
                 ref = _reference_size(t)
                 y2 = (float(kf.x[0]), float(kf.x[1]))
                 out = BBox.from_center(y2[0], y2[1], ref[0], ref[1])
+        if status == TargetStatus.LOST:  # a lost target stays where it was last believed to be
+            kf = stop(kf)
     _add(timing, "kalman", clock)
 
     # events
     if status != t.status:
         if status == TargetStatus.LOST:
-            events.append(Event(EventKind.LOST, f"T{t.id} lost after {missing_n} frames without a measurement", (t.id,)))
+            why = "left the frame" if _outside(prior.box, ir.shape) else f"{missing_n} frames without a measurement"
+            events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
         elif t.status == TargetStatus.LOST:
             events.append(Event(EventKind.REACQUIRED, f"T{t.id} re-acquired ({source})", (t.id,)))
         elif status.is_occluded and not t.status.is_occluded:
@@ -467,3 +621,162 @@ def track_target(frames: FramePair, t: DualTarget, cfg: object, mode: str, timin
                        conf, c.contour if c.box is not None else (), diag,
                        {"prediction": prior.box, "meanshift": BBox.from_center(y1[0], y1[1], t.size[0], t.size[1])})
     return nt, res, events
+
+
+def _union(boxes: list[BBox]) -> BBox:
+    x0 = min(b.x for b in boxes)
+    y0 = min(b.y for b in boxes)
+    return BBox(x0, y0, max(b.x2 for b in boxes) - x0, max(b.y2 for b in boxes) - y0)
+
+
+def finish_group(frames: FramePair, css: list[ColourStep], cfg: object, mode: str, timing: dict[str, float],
+                 memories: tuple[GroupMemory, ...]):
+    """A merged group (steps 4-9 of the paper's multi-target algorithm).
+
+    One level set over the merged blob, started from the members' positions. If it shows
+    a separate blob for every member, the group splits: blobs are re-associated globally
+    (colour, plus distance to each prediction) and every member continues on its own. Else
+    the group stays merged: the foreground (best colour match) keeps its mean-shift
+    position; an occluded member is placed by eq. 11 or by its motion state
+    (``dual.merge_position``); no scale or model update while merged.
+    """
+    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
+    kcfg = cfg.kalman  # type: ignore[attr-defined]
+    ir = frames.infrared
+    assert ir is not None
+    clock = time.perf_counter()
+    ids = tuple(cs.t.id for cs in css)
+    union = _union([cs.box1 for cs in css] + [cs.box_prior for cs in css if cs.t.status == TargetStatus.MERGED])
+    group_cfg = dataclasses.replace(cfg.contour, max_area_ratio=50.0, max_dimension_ratio=50.0)  # type: ignore[attr-defined]
+    prev = next((m for m in memories if m.members == ids), None)
+    shift = (union.cx - prev.center[0], union.cy - prev.center[1]) if prev else (0.0, 0.0)
+    c = extract_contour(ir, union, group_cfg, cfg.levelset, prev.memory if prev else None, shift,  # type: ignore[attr-defined]
+                        cold_init=union.scaled(1.15), part_width=min(cs.t.size[0] for cs in css))
+    clock = _add(timing, "levelset", clock)
+    min_area = dcfg.split_min_area_fraction * min(reference_area(cs.t) for cs in css)
+    blobs = [b for b in c.components if b.area >= min_area and b.intersect(union.scaled(1.2)).area > 0]
+    was_merged = all(cs.t.status == TargetStatus.MERGED for cs in css)
+    out: dict[int, tuple[DualTarget, TargetResult, list[Event]]] = {}
+
+    if len(blobs) >= len(css):  # split: every member has its own blob again
+        rho = np.full((len(css), len(blobs)), np.nan)
+        dist = np.zeros((len(css), len(blobs)))
+        scale = np.array([np.hypot(*cs.t.size) for cs in css])
+        for i, cs in enumerate(css):
+            for j, b in enumerate(blobs):
+                if cs.informative and cs.bins is not None:
+                    rho[i, j] = _match_at(cs.bins, cs.t.q, b.with_center(b.cx, b.cy), cs.roi0, cfg)
+                dist[i, j] = np.hypot(b.cx - cs.y0[0], b.cy - cs.y0[1])
+        pairs = associate(association_cost(rho, dist, scale, dcfg.association_motion_weight))
+        text = ", ".join(f"T{css[i].t.id}->blob at ({blobs[j].cx:.0f},{blobs[j].cy:.0f})" for i, j in pairs)
+        for i, j in pairs:
+            cs = css[i]
+            ev = [Event(EventKind.SPLIT, f"T{cs.t.id} split from {'+'.join(f'T{k}' for k in ids)}; re-associated: {text}",
+                        (cs.t.id,))] if i == pairs[0][0] else []
+            t = dataclasses.replace(cs.t, memory=None, status=TargetStatus.OCCLUDED_PARTIAL)
+            out[cs.t.id] = finish_single(frames, dataclasses.replace(cs, t=t), cfg, mode, timing,
+                                         start=blobs[j].center, events_in=ev)
+        return out, None
+
+    # still merged; a group contour without contrast (leaked into the background) places nobody
+    group_ok = c.box is not None and abs(c.contrast) >= cfg.contour.min_contrast  # type: ignore[attr-defined]
+    y2 = c.box.center if c.box is not None else union.center
+    fg_id = choose_foreground_stable({cs.t.id: cs.rho1 if cs.informative else float("nan") for cs in css},
+                                     prev.foreground if prev else None, dcfg.role_margin,
+                                     {cs.t.id: float(np.hypot(cs.y1[0] - y2[0], cs.y1[1] - y2[1])) for cs in css})
+    fg = next(cs for cs in css if cs.t.id == fg_id)
+    Hm, Rm = kalman.measurement_model(kcfg)
+    blob_wider = group_ok and c.box is not None and c.box.w > 1.2 * fg.t.size[0]
+    blob_ratio = c.box.area / sum(reference_area(cs.t) for cs in css) if c.box is not None else float("nan")
+    events: list[Event] = []
+    if not was_merged:
+        roles = ", ".join(f"T{cs.t.id} {'foreground' if cs.t.id == fg_id else 'occluded'}" for cs in css)
+        events.append(Event(EventKind.MERGE, f"{'+'.join(f'T{k}' for k in ids)} merged ({roles})", ids))
+    elif prev is not None and prev.foreground != fg_id:
+        events.append(Event(EventKind.MERGE, f"T{fg_id} now in front of {'+'.join(f'T{k}' for k in ids if k != fg_id)}", ids))
+    # beyond the paper ("auto"): look-alikes located by k-means on the blob; any other member whose own
+    # colour is clearly seen (and not where a better-matching member already is) measured by its mean shift
+    placed: dict[int, tuple[tuple[float, float], str]] = {}
+    if dcfg.merge_position == "auto":
+        alike = {i for g in lookalike_sets({cs.t.id: cs.t.q for cs in css if cs.informative}, dcfg.lookalike_rho)
+                 for i in g}
+        if alike and group_ok and c.box is not None and c.memory is not None:
+            mask = _main_blob(c.memory.phi, union, c.memory.origin)
+            members = [cs for cs in css if cs.t.id in alike]
+            if mask is not None:
+                cents = kmeans_shares(mask, c.memory.origin, [(float(cs.prior.x[0]), float(cs.prior.x[1])) for cs in members],
+                                      [_reference_size(cs.t) for cs in members], dcfg.kmeans_iterations)
+                for cs, cen in zip(members, cents, strict=True):
+                    if cen is not None:
+                        placed[cs.t.id] = (cen, "merge-kmeans")
+        near = 0.5 * min(cs.t.size[0] for cs in css)
+        for cs in sorted(css, key=lambda cs: -cs.rho1 if cs.informative else 1.0):
+            if cs.t.id in placed or not cs.informative or (cs.t.id != fg_id and cs.rho1 < dcfg.merge_visible_rho):
+                continue
+            if all(np.hypot(cs.y1[0] - p[0], cs.y1[1] - p[1]) > near for p, _ in placed.values()):
+                placed[cs.t.id] = (cs.y1, "merge-foreground" if cs.t.id == fg_id else "merge-visible")
+    for cs in css:
+        t = cs.t
+        ref = _reference_size(t)
+        role = 1.0 if t.id == fg_id else 2.0
+        missing_n = 0
+        if t.id in placed:
+            y, source = placed[t.id]
+        elif t.id == fg_id:
+            y, source = cs.y1, "merge-foreground"
+        elif len(css) == 2 and (dcfg.merge_position == "eq11" or (dcfg.merge_position == "auto" and blob_wider)):
+            y, source = eq11(y2, fg.y1), "merge-eq11"
+            if c.box is not None:  # the mirrored position stays inside the blob it was mirrored in
+                y = _inside(y, ref, c.box)
+        else:
+            y, source = (float(cs.prior.x[0]), float(cs.prior.x[1])), "merge-motion"
+        box = BBox.from_center(y[0], y[1], ref[0], ref[1])
+        if source == "merge-motion":
+            kf = cs.prior
+            missing_n = t.missing + 1
+        else:
+            kf = kalman.update(cs.prior, kalman.box_measurement(box), Hm, Rm).state
+        status = TargetStatus.LOST if missing_n > dcfg.max_missing_frames else TargetStatus.MERGED
+        if status == TargetStatus.LOST:
+            kf = stop(kf)
+        if status == TargetStatus.LOST and t.status != TargetStatus.LOST:
+            events.append(Event(EventKind.LOST, f"T{t.id} lost (hidden in a merge for {missing_n} frames)", (t.id,)))
+        decision = UpdateDecision(False, "merged")
+        nt = dataclasses.replace(t, box=box, status=status, kf=kf, memory=None, missing=missing_n,
+                                 last_update=str(decision))
+        diag = {"rho_y1": cs.rho1, "role": role, "group_size": float(len(css)), "contrast": c.contrast,
+                "blob_area_ratio": blob_ratio,
+                "components": float(len(c.components)), "missing": float(missing_n)}
+        res = TargetResult(t.id, box, status, source, {"meanshift": cs.ms_iters, "levelset": c.iterations},
+                           cs.rho1, str(decision), 0.7 if t.id == fg_id else 0.4,
+                           c.contour if t.id == fg_id else (), diag,
+                           {"prediction": cs.prior.box, "meanshift": cs.box1})
+        out[t.id] = (nt, res, events if t.id == fg_id else [])
+    _add(timing, "merge", clock)
+    mem = GroupMemory(ids, c.memory, union.center, fg_id) if c.box is not None else None
+    return out, mem
+
+
+def _inside(center: tuple[float, float], size: tuple[float, float], blob: BBox) -> tuple[float, float]:
+    """``center`` moved so that a box of ``size`` lies inside ``blob`` (centred where it cannot)."""
+    out = []
+    for c, s, lo, hi in ((center[0], size[0], blob.x, blob.x2), (center[1], size[1], blob.y, blob.y2)):
+        a, b = lo + s / 2, hi - s / 2
+        out.append((lo + hi) / 2 if a > b else min(max(c, a), b))
+    return out[0], out[1]
+
+
+def _main_blob(phi: np.ndarray, union: BBox, origin: tuple[int, int]) -> np.ndarray | None:
+    """Mask of the component of ``phi < 0`` with most pixels inside the group's union box."""
+    import cv2
+
+    mask = (phi < 0).astype(np.uint8)
+    n, labels = cv2.connectedComponents(mask, connectivity=8)
+    if n <= 1:
+        return None
+    u = union.shifted(-origin[0], -origin[1])
+    inside = labels[max(int(u.y), 0):max(int(np.ceil(u.y2)), 0), max(int(u.x), 0):max(int(np.ceil(u.x2)), 0)]
+    counts = np.bincount(inside.ravel(), minlength=n)
+    counts[0] = 0
+    best = int(np.argmax(counts))
+    return labels == best if counts[best] > 0 else None
