@@ -78,6 +78,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", type=Path)
     _add_open_options(p)
 
+    p = sub.add_parser("batch", help="run every sequence under a folder (locally or on Dask) and write one report")
+    p.add_argument("root", type=Path, help="archive root: every sequence folder under it is run")
+    p.add_argument("--out", type=Path, required=True, help="one run folder per sequence, report.json/.md, plots/")
+    p.add_argument("--trackers", default=None, help="comma-separated tracker names (default: the default tracker)")
+    p.add_argument("--workers", type=int, default=None, help="sequences at a time on this machine (default: cores)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT", help="run on a Dask distributed cluster")
+    p.add_argument("--ship-frames", action="store_true",
+                   help="with --scheduler: send each sequence's files to the worker (default: workers read ROOT's path)")
+    p.add_argument("--force", action="store_true", help="redo sequences whose run folder is complete")
+    p.add_argument("--protocol", choices=("default", "gtot", "rgbt234", "lasher"), default="default")
+    p.add_argument("--export", choices=("rgbt234", "gtot", "lasher"), default=None,
+                   help="also write each tracker's results in that toolkit's per-sequence format")
+    p.add_argument("--timeout", type=float, default=None, metavar="SECONDS", help="a sequence taking longer fails")
+    p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd per sequence")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
+    p.add_argument("--config", type=Path)
+
     sub.add_parser("trackers", help="list the tracker engines and whether they can run here")
     return parser
 
@@ -174,6 +191,24 @@ def _cmd_bench(a: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_batch(a: argparse.Namespace) -> int:
+    from pipeline.batch import BatchOptions, run_batch
+    from pipeline.trackers import DEFAULT_TRACKER
+
+    trackers = tuple(t.strip() for t in (a.trackers or DEFAULT_TRACKER).split(",") if t.strip())
+    opts = BatchOptions(trackers=trackers, workers=a.workers, scheduler=a.scheduler, force=a.force,
+                        protocol=a.protocol, export=a.export, sets=tuple(a.set), config_path=a.config,
+                        rrd=not a.no_rrd, ship_frames=a.ship_frames, timeout_s=a.timeout)
+    res = run_batch(a.root, a.out, opts)
+    n = {st: sum(r.status == st for r in res.results) for st in ("done", "skipped", "failed")}
+    print(f"{res.out_dir}: {n['done']} done, {n['skipped']} already complete, {n['failed']} failed "
+          f"in {res.wall_seconds:.1f} s; report in {res.out_dir / 'report.md'}")
+    if res.interrupted:
+        print(f"{PROG}: interrupted; finished sequences and the report in {res.out_dir} are valid", file=sys.stderr)
+        return 130
+    return 1 if n["failed"] else 0
+
+
 def _cmd_trackers(_a: argparse.Namespace) -> int:
     from pipeline.trackers import DEFAULT_TRACKER, available_trackers, tracker_names
 
@@ -187,7 +222,7 @@ def _cmd_trackers(_a: argparse.Namespace) -> int:
 
 
 COMMANDS = {"track": _cmd_track, "evaluate": _cmd_evaluate, "synth": _cmd_synth, "bench": _cmd_bench,
-            "trackers": _cmd_trackers}
+            "batch": _cmd_batch, "trackers": _cmd_trackers}
 
 
 def main(argv: list[str] | None = None) -> int:

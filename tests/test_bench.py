@@ -16,3 +16,25 @@ def test_bench_table_and_json(scene, tmp_path):
     table = format_table(rows)
     assert "| sequence | tracker | P@20 | AUC | fps_tracking | fps_end_to_end | fps_decode | e2e/decode |" in table
     assert json.loads((tmp_path / "b.json").read_text())["rows"][1]["tracker"] == "camshift"
+
+
+def test_fps_vs_targets_table(tmp_path):
+    from pipeline.bench import format_scaling, run_scaling
+
+    rows = run_scaling([1, 2], ["meanshift"], out=tmp_path)
+    assert [(r["tracker"], r["targets"]) for r in rows] == [("meanshift", 1), ("meanshift", 2)]
+    assert rows[0]["per_target_cost_vs_first"] == 1.0 and rows[1]["per_target_cost_vs_first"] > 0
+    assert rows[1]["ms_per_target"] == round(1000 / (rows[1]["fps_tracking"] * 2), 3)
+    # two people in separate lanes: both followed, no identity confusion
+    assert rows[1]["p20"] >= 0.95 and rows[1]["purity"] >= 0.95 and rows[1]["id_switches"] == 0
+    assert "| meanshift | 2 |" in format_scaling(rows)
+
+
+def test_bench_targets_rejects_unknown_counts(capsys):
+    from pipeline.cli import main
+
+    assert main(["bench", "--targets", "3"]) == 1
+    err = capsys.readouterr().err
+    assert "no scene with 3 targets" in err and "\n" == err[-1] and err.count("\n") == 1
+    assert main(["bench"]) == 1
+    assert "needs sequence folders" in capsys.readouterr().err

@@ -295,6 +295,26 @@ def _find_mot_gt(root: Path, frames_dir: Path | None) -> Path | None:
     return None
 
 
+def sequence_layout(path: str | Path) -> str | None:
+    """The layout name of a sequence folder, without reading any frame; None when ``path``
+    holds no frames in any layout :func:`open_sequence` knows (used to find sequences under
+    an archive root)."""
+    root = Path(path)
+    if not root.is_dir():
+        return None
+    for s in _PAIR_LAYOUTS:
+        vd, idir = _find_dir(root, s.visible or ""), _find_dir(root, s.infrared or "")
+        if vd is not None and idir is not None and list_images(vd) and list_images(idir):
+            return s.name
+    if _find_video(root, "visible") is not None and _find_video(root, "infrared") is not None:
+        return "video-pair"
+    for s in _ONE_CHANNEL_LAYOUTS:
+        d = _find_dir(root, s.visible or "")
+        if d is not None and list_images(d):
+            return s.name
+    return None
+
+
 def open_sequence(
     path: str | Path,
     *,

@@ -24,6 +24,16 @@ from pipeline.synthetic.scene import Renderer, Scene
 SCENARIOS: dict[str, Scene] = {name: build() for name, build in SCENARIO_BUILDERS.items()}
 JPEG_QUALITY = 92
 
+# The challenge attributes of each scenario, in RGBT234's codes (NO no occlusion, PO partial
+# occlusion, HO heavy occlusion, LI low illumination, TC thermal crossover, FM fast motion,
+# SV scale variation, BC background clutter), written to scene.json for per-attribute reports.
+ATTRIBUTES: dict[str, tuple[str, ...]] = {
+    "dusk": ("NO", "LI"), "shadows": ("NO", "BC"), "approach": ("NO", "SV"), "lookalike": ("NO", "BC"),
+    "hot-distractor": ("NO", "BC"), "crossover": ("NO", "TC"), "occluder": ("HO",), "fast": ("NO", "FM"),
+    "crossing2": ("HO",), "crossing3": ("HO", "SV"), "meet-part": ("PO", "BC"), "group3": ("HO",),
+    "occluded-static": ("HO", "BC"), "occluded-moving": ("HO",), "pole-fast": ("HO", "FM"),
+}
+
 
 def _ranges(mask: np.ndarray) -> list[list[int]]:
     """1-based inclusive frame ranges where ``mask`` is True."""
@@ -96,6 +106,7 @@ def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = Fals
         "hidden_frames": {str(i): _ranges(vis[i] < 0.05) for i in ids},
         "absent_frames": {str(i): _ranges(np.isnan(boxes[i]).any(axis=1)) for i in ids},
         "visibility": {str(i): [round(float(x), 3) for x in vis[i]] for i in ids},
+        "attributes": list(ATTRIBUTES.get(name, ("NO",))),
         "notes": scene.notes,
     }
     (out / "scene.json").write_text(json.dumps(meta, indent=1) + "\n")

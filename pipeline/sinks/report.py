@@ -1,0 +1,188 @@
+"""The report of a batch: ``report.json``, ``report.md`` and ``plots/`` under DIR.
+
+``report.json``::
+
+    {"protocol": ..., "trackers": [...], "wall_seconds": ..., "interrupted": bool,
+     "sequences": {name: {"status": "done|failed|skipped", "error": ..., "tracker": ...,
+                          "sequence": ..., "run_dir": ..., "attributes": [...],
+                          "metrics": ..., "fps_tracking": ..., "frames": ...}},
+     "overall": {tracker: {scores (pipeline.eval.aggregate), "done", "failed", "skipped",
+                           "attributes": {attr: scores over the sequences that have it}}}}
+
+``name`` is the sequence's path under ROOT, prefixed with ``<tracker>/`` when the batch
+ran several trackers. ``skipped`` sequences were complete from an earlier run; their
+results count in the report as if run now. ``plots/precision.png`` and
+``plots/success.png`` draw one curve per tracker over all finished sequences, the plots
+tracking papers print, and ``plots/attributes/<A>_*.png`` the same per attribute.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.eval.aggregate import SCORE_KEYS, aggregate, sequence_curves
+from pipeline.io.attributes import read_root_table, sequence_attributes
+
+HEADLINE = {"default": ("p20", "auc"), "rgbt234": ("mpr", "msr"), "gtot": ("mpr", "msr"), "lasher": ("pr", "npr", "sr")}
+LABEL = {"p5": "P@5", "p20": "P@20", "auc": "AUC", "mpr": "MPR", "msr": "MSR", "npr": "NPR", "pr": "PR", "sr": "SR",
+         "mota": "MOTA", "idf1": "IDF1", "hota": "HOTA", "purity": "purity", "id_switches": "ID sw."}
+
+
+def _clean(x: object) -> object:
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_clean(v) for v in x]
+    if isinstance(x, float | np.floating):
+        return float(x) if math.isfinite(float(x)) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def _f(v: object, nd: int = 3) -> str:
+    if isinstance(v, bool) or v is None:
+        return "" if v is None else str(v)
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return "" if math.isnan(v) else f"{v:.{nd}f}"
+    return str(v)
+
+
+def write_report(out: Path, results: list, opts, wall_seconds: float, interrupted: bool) -> dict[str, object]:
+    """Write report.json, report.md and the plots; returns the report object."""
+    from pipeline.sinks.plots import comparison_plots
+
+    out = Path(out)
+    protocol = opts.protocol
+    trackers = list(opts.trackers)
+    roots = {r.task.seq_dir.parent for r in results}
+    tables: dict[Path, dict[str, tuple[str, ...]]] = {d: read_root_table(d) for d in roots}
+    sequences: dict[str, dict[str, object]] = {}
+    entries: dict[str, list[dict[str, object]]] = {t: [] for t in trackers}
+    for r in results:
+        t = r.task
+        attrs = list(sequence_attributes(t.seq_dir, tables.get(t.seq_dir.parent)))
+        rec: dict[str, object] = {"status": r.status, "error": r.error, "tracker": t.tracker, "sequence": t.sequence,
+                                  "run_dir": _rel(t.run_dir, out), "attributes": attrs}
+        if r.status in ("done", "skipped"):
+            s = r.summary
+            rec.update({"metrics": s.get("metrics"), "fps_tracking": s.get("fps_tracking"), "frames": s.get("frames")})
+            entry = dict(rec)
+            if isinstance(s.get("metrics"), dict):
+                try:
+                    entry["curves"] = sequence_curves(t.seq_dir, t.run_dir / "tracks.csv", protocol)
+                except Exception as e:  # noqa: BLE001 - a report must not die on one sequence
+                    rec["report_warning"] = f"no curves: {e}"
+            entries[t.tracker].append(entry)
+        else:
+            rec.update({"metrics": None, "fps_tracking": None, "frames": r.summary.get("frames")})
+        sequences[t.key] = rec
+
+    overall: dict[str, dict[str, object]] = {}
+    for trk in trackers:
+        scored = [e for e in entries[trk] if isinstance(e.get("metrics"), dict)]
+        o = aggregate(scored, protocol)
+        mine = [r for r in results if r.task.tracker == trk]
+        o.update({st: sum(r.status == st for r in mine) for st in ("done", "failed", "skipped")})
+        by_attr: dict[str, dict[str, object]] = {}
+        for a in sorted({a for e in scored for a in e["attributes"]}):  # type: ignore[union-attr]
+            by_attr[a] = aggregate([e for e in scored if a in e["attributes"]], protocol)  # type: ignore[operator]
+        o["attributes"] = by_attr
+        overall[trk] = o
+
+    report = _clean({"protocol": protocol, "trackers": trackers, "wall_seconds": round(wall_seconds, 3),
+                     "interrupted": interrupted, "sequences": sequences, "overall": overall})
+    (out / "report.json").write_text(json.dumps(report, indent=1) + "\n")
+
+    plots: list[Path] = []
+    series = {t: {"precision": np.asarray(o["precision_curve"]), "success": np.asarray(o["success_curve"])}
+              for t, o in overall.items() if o.get("precision_curve") is not None}
+    if series:
+        plots += comparison_plots(out / "plots", series, f"all sequences ({protocol})")
+        attrs = sorted({a for o in overall.values() for a in o["attributes"]})  # type: ignore[union-attr]
+        for a in attrs:
+            s = {t: {"precision": np.asarray(o["attributes"][a]["precision_curve"]),  # type: ignore[index]
+                     "success": np.asarray(o["attributes"][a]["success_curve"])}  # type: ignore[index]
+                 for t, o in overall.items() if a in o["attributes"]  # type: ignore[operator]
+                 and o["attributes"][a].get("precision_curve") is not None}  # type: ignore[index]
+            if s:
+                n = max(int(o["attributes"][a]["sequences"]) for o in overall.values() if a in o["attributes"])  # type: ignore[index, operator]
+                plots += comparison_plots(out / "plots" / "attributes", s, f"{a} ({n} sequences)", prefix=f"{a}_")
+    (out / "report.md").write_text(_markdown(report, protocol, trackers, plots, out))
+    return report  # type: ignore[return-value]
+
+
+def _rel(p: Path, base: Path) -> str:
+    try:
+        return Path(p).relative_to(base).as_posix()
+    except ValueError:
+        return str(p)
+
+
+def _markdown(report: dict, protocol: str, trackers: list[str], plots: list[Path], out: Path) -> str:
+    overall = report["overall"]
+    keys = list(HEADLINE[protocol])
+    extra = [k for k in ("purity", "id_switches", "mota", "idf1", "hota") if any(k in o for o in overall.values())]
+    seqs = report["sequences"]
+    n_seq = len({s["sequence"] for s in seqs.values()})
+    lines = [f"# dualtrack batch report", "",
+             f"{n_seq} sequences, trackers: {', '.join(trackers)}; protocol `{protocol}` "
+             f"({'frames pooled over all sequences' if protocol == 'gtot' else 'mean over sequences'}); "
+             f"wall time {report['wall_seconds']:.1f} s" + (" (interrupted)" if report["interrupted"] else "") + ".", "",
+             "## Overall", "",
+             "| tracker | done | skipped (earlier run) | failed | " + " | ".join(LABEL[k] for k in keys + extra)
+             + " | fps (mean) | fps (pooled) |",
+             "|---|---|---|---|" + "---|" * (len(keys) + len(extra)) + "---|---|"]
+    for t in trackers:
+        o = overall[t]
+        lines.append(f"| {t} | {o.get('done', 0)} | {o.get('skipped', 0)} | {o.get('failed', 0)} | "
+                     + " | ".join(_f(o.get(k)) for k in keys + extra)
+                     + f" | {_f(o.get('fps_tracking_mean'), 1)} | {_f(o.get('fps_tracking_pooled'), 1)} |")
+    attrs = sorted({a for o in overall.values() for a in o.get("attributes", {})})
+    if attrs:
+        k0 = keys[0]
+        lines += ["", f"## Per attribute ({LABEL[k0]}" + (f" / {LABEL[keys[1]]}" if len(keys) > 1 else "") + ")", "",
+                  "| attribute | sequences | " + " | ".join(trackers) + " |", "|---|---|" + "---|" * len(trackers)]
+        for a in attrs:
+            n = max(int(o["attributes"][a]["sequences"]) for o in overall.values() if a in o.get("attributes", {}))
+            cells = []
+            for t in trackers:
+                s = overall[t].get("attributes", {}).get(a)
+                cells.append("" if not s else " / ".join(_f(s.get(k)) for k in keys[:2]))
+            lines.append(f"| {a} | {n} | " + " | ".join(cells) + " |")
+    lines += ["", "## Sequences", "",
+              "| sequence | " + " | ".join(f"{t}: " + " / ".join(LABEL[k] for k in keys[:2]) + ", fps" for t in trackers) + " |",
+              "|---|" + "---|" * len(trackers)]
+    by_seq: dict[str, dict[str, dict]] = {}
+    for rec in seqs.values():
+        by_seq.setdefault(rec["sequence"], {})[rec["tracker"]] = rec
+    for name in sorted(by_seq):
+        cells = []
+        for t in trackers:
+            rec = by_seq[name].get(t)
+            if rec is None:
+                cells.append("")
+            elif rec["status"] == "failed":
+                cells.append("failed")
+            else:
+                m = rec.get("metrics") or {}
+                cells.append(" / ".join(_f(m.get(k)) for k in keys[:2]) + f", {_f(rec.get('fps_tracking'), 1)}")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    failed = [(k, r) for k, r in seqs.items() if r["status"] == "failed"]
+    if failed:
+        lines += ["", "## Failed", ""] + [f"- `{k}`: {r['error']}" for k, r in failed]
+    if plots:
+        lines += ["", "## Plots", ""] + [f"![{p.stem}]({_rel(p, out)})" for p in plots if p.parent == out / "plots"]
+        if any(p.parent != out / "plots" for p in plots):
+            lines += ["", "Per attribute: `plots/attributes/`."]
+    lines.append("")
+    return "\n".join(lines)
+
+
+__all__ = ["SCORE_KEYS", "write_report"]
