@@ -57,6 +57,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("tracks_csv", type=Path)
     p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     p.add_argument("--protocol", choices=("default", "gtot", "rgbt234", "lasher"), default="default")
+    p.add_argument("--ids", choices=("auto", "truth", "assign"), default="auto",
+                   help="score each truth id against the track with its id (truth), the IDF1 assignment's track "
+                        "(assign, for detection-made ids), or truth when every track id is a truth id (auto)")
+    _add_open_options(p)
+
+    p = sub.add_parser("detect", help="STDM detection on every frame: det.txt, rois.csv, detections.rrd")
+    p.add_argument("seq_dir", type=Path)
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--no-rrd", action="store_true")
+    p.add_argument("--force", action="store_true", help="overwrite a non-empty output folder")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
+    p.add_argument("--config", type=Path)
     _add_open_options(p)
 
     p = sub.add_parser("synth", help="write synthetic sequences with exact ground truth")
@@ -129,7 +141,7 @@ def _cmd_evaluate(a: argparse.Namespace) -> int:
 
     from pipeline.eval import evaluate_files
 
-    m = evaluate_files(a.seq_dir, a.tracks_csv, a.protocol, channel=a.channel, align=a.align, gt_base=a.gt_base)
+    m = evaluate_files(a.seq_dir, a.tracks_csv, a.protocol, a.ids, channel=a.channel, align=a.align, gt_base=a.gt_base)
     if a.json:
         print(json.dumps(m))
         return 0
@@ -209,6 +221,20 @@ def _cmd_batch(a: argparse.Namespace) -> int:
     return 1 if n["failed"] else 0
 
 
+def _cmd_detect(a: argparse.Namespace) -> int:
+    from pipeline.detect_run import run_detect
+
+    res = run_detect(a.seq_dir, a.out, a.set, a.config, rrd=not a.no_rrd, force=a.force, channel=a.channel,
+                     align=a.align, gt_base=a.gt_base)
+    s = res.summary
+    line = (f"{res.out_dir}: {s['frames']} frames, {s['detections_per_frame']:.2f} detections per frame, "
+            f"{s['ms_per_frame']} ms per frame")
+    if s.get("recall") is not None:
+        line += f", recall {s['recall']:.3f}, precision {s['precision']:.3f} ({s['targets_scored']} visible targets)"
+    print(line)
+    return 0
+
+
 def _cmd_trackers(_a: argparse.Namespace) -> int:
     from pipeline.trackers import DEFAULT_TRACKER, available_trackers, tracker_names
 
@@ -222,7 +248,7 @@ def _cmd_trackers(_a: argparse.Namespace) -> int:
 
 
 COMMANDS = {"track": _cmd_track, "evaluate": _cmd_evaluate, "synth": _cmd_synth, "bench": _cmd_bench,
-            "batch": _cmd_batch, "trackers": _cmd_trackers}
+            "batch": _cmd_batch, "detect": _cmd_detect, "trackers": _cmd_trackers}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -22,7 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.errors import ConfigError
+from pipeline.stages.association import AssociationConfig
 from pipeline.stages.contour import ContourConfig
+from pipeline.stages.detection import DetectionConfig
 from pipeline.stages.histogram import HistogramConfig
 from pipeline.sinks.settings import RerunConfig
 from pipeline.stages.kalman import KalmanConfig
@@ -30,6 +32,7 @@ from pipeline.stages.levelset import LevelSetConfig
 from pipeline.stages.meanshift import MeanShiftConfig
 from pipeline.stages.model_update import ModelUpdateConfig
 from pipeline.stages.occlusion import OcclusionConfig
+from pipeline.stages.roi_match import RoiMatchConfig
 from pipeline.trackers.dual import DualConfig
 from pipeline.trackers.peers import CamShiftConfig, OpenCVTrackerConfig
 
@@ -60,6 +63,12 @@ class PipelineConfig:
         Kalman motion stage (all trackers that predict).
     occlusion : OcclusionConfig
         Kalman-CAMShift occlusion grading.
+    detection : DetectionConfig
+        STDM detection and ROI discrimination.
+    roi_match : RoiMatchConfig
+        Affine-invariant ROI correlation (the image term).
+    association : AssociationConfig
+        Global association, track birth and death (the detection-driven tracker).
     rerun : RerunConfig
         The .rrd recording.
     """
@@ -74,6 +83,9 @@ class PipelineConfig:
     opencv: OpenCVTrackerConfig = field(default_factory=OpenCVTrackerConfig)
     kalman: KalmanConfig = field(default_factory=KalmanConfig)
     occlusion: OcclusionConfig = field(default_factory=OcclusionConfig)
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    roi_match: RoiMatchConfig = field(default_factory=RoiMatchConfig)
+    association: AssociationConfig = field(default_factory=AssociationConfig)
     rerun: RerunConfig = field(default_factory=RerunConfig)
 
 

@@ -155,9 +155,12 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
     seq = open_sequence(seq_path, channel=opts.channel, align=opts.align, gt_base=opts.gt_base)
     cfg = load_config(opts.config_path, opts.sets)
     engine = make_tracker(opts.tracker, cfg)
-    if opts.detect and not opts.init and opts.init_file is None:
-        from pipeline.trackers import detect_init  # the detection issue provides it
+    from pipeline.trackers import NEEDS_NO_INIT, detect_init
 
+    detected_ids = opts.tracker in NEEDS_NO_INIT or (opts.detect and not opts.init and opts.init_file is None)
+    if opts.tracker in NEEDS_NO_INIT:
+        targets = []
+    elif detected_ids:
         targets = detect_init(seq, cfg)
     else:
         targets = resolve_init(seq, opts.init, opts.init_file, opts.channel)
@@ -174,6 +177,7 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
         "frames": 0,
         "frames_total": seq.n_frames,
         "targets": [{"id": t.id, "box": list(t.box.as_tuple())} for t in targets],
+        "ids": "detected" if detected_ids else "given",
         "config": config_to_dict(cfg),
         "version": __version__,
         "seed": _scene_seed(seq),
@@ -248,11 +252,12 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
     if seq.truth.has_truth and done > 0:
         truth = _truncate(seq, done)
         table = TrackTable({k: v[:done] for k, v in boxes.items()}, {})
-        summary["metrics"] = evaluate(truth, table, done, opts.protocol)
+        id_rule = "assign" if detected_ids else "truth"  # detection-made ids are arbitrary
+        summary["metrics"] = evaluate(truth, table, done, opts.protocol, id_rule)
         if opts.plots:
             from pipeline.sinks.plots import write_plots
 
-            write_plots(out / "plots", curves(truth, table, done), f"{seq.name} / {opts.tracker}")
+            write_plots(out / "plots", curves(truth, table, done, id_rule), f"{seq.name} / {opts.tracker}")
     write_json(out / "summary.json", summary)
     return RunResult(out, summary, complete, interrupted, error, boxes)
 

@@ -10,10 +10,12 @@
 * ``protocol="gtot" | "rgbt234" | "lasher"``: the toolkit's own keys and rules
   (``pipeline.eval.protocols``), per target and averaged.
 
-Track ids are scored against the truth id they carry when every track id is a truth id
-(initialised from the truth or by ``--init`` on a single target); otherwise (automatic
-detection) each truth id is scored against the track that the global IDF1 assignment
-gives it.
+Which track is scored against which truth id (``id_rule``): ``truth`` - the track carrying the
+truth's id (trackers initialised from the truth or by ``--init``: a tracker that swaps
+identities is scored against the right target, not rewarded for the swap); ``assign`` -
+the track the global IDF1 assignment gives it (automatic detection, whose ids are
+arbitrary); ``auto`` (default for files scored on their own) - ``truth`` when every track id
+is a truth id, else ``assign``.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from pipeline.eval.single import center_errors, ious, precision_curve, single_ta
 from pipeline.io.results import TrackTable, read_tracks
 from pipeline.io.sequence import Truth, open_sequence
 
+ID_RULES = ("auto", "truth", "assign")
 SINGLE_KEYS = ("p5", "p20", "auc", "mean_error_px", "npr", "mpr", "msr")
 
 
@@ -36,16 +39,20 @@ def _mean(values: list[float]) -> float:
     return float(np.mean(v)) if v else float("nan")
 
 
-def track_for_truth(truth_ids: list[int], tracks: TrackTable, mapping: dict[int, int]) -> dict[int, int | None]:
+def track_for_truth(truth_ids: list[int], tracks: TrackTable, mapping: dict[int, int],
+                    id_rule: str = "auto") -> dict[int, int | None]:
     """Which track id is scored against each truth id (see the module doc)."""
-    if tracks.boxes and set(tracks.boxes) <= set(truth_ids):
+    if id_rule not in ID_RULES:
+        raise ValueError(f"id_rule must be one of {ID_RULES}; got {id_rule!r}")
+    if id_rule == "truth" or (id_rule == "auto" and tracks.boxes and set(tracks.boxes) <= set(truth_ids)):
         return {g: (g if g in tracks.boxes else None) for g in truth_ids}
     if len(truth_ids) == 1 and len(tracks.boxes) == 1 and not mapping:
         return {truth_ids[0]: next(iter(tracks.boxes))}
     return {g: mapping.get(g) for g in truth_ids}
 
 
-def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "default") -> dict[str, object]:
+def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "default",
+             id_rule: str = "auto") -> dict[str, object]:
     """Score ``tracks`` against ``truth`` (see the module doc for the keys)."""
     if protocol not in protocols.PROTOCOLS:
         raise ValueError(f"protocol must be one of {protocols.PROTOCOLS}; got {protocol!r}")
@@ -58,7 +65,7 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
     ids = list(gt)
     multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
     id_info = mot.idf1(gt, tracks.boxes) if tracks.boxes else {"idf1": 0.0, "mapping": {}}
-    which = track_for_truth(ids, tracks, id_info["mapping"])  # type: ignore[arg-type]
+    which = track_for_truth(ids, tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]
     empty = np.full((n_frames, 4), np.nan)
 
     per: dict[str, dict[str, float]] = {}
@@ -111,7 +118,8 @@ def _clean(x: object) -> object:
     return x
 
 
-def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = "default", **open_kw: object) -> dict[str, object]:
+def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = "default", id_rule: str = "auto",
+                   **open_kw: object) -> dict[str, object]:
     """``dualtrack evaluate SEQ_DIR TRACKS_CSV``: open the sequence, read the results, score."""
     seq = open_sequence(seq_dir, **open_kw)  # type: ignore[arg-type]
     if not seq.truth.has_truth:
@@ -119,16 +127,16 @@ def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = 
 
         raise InputError(f"{seq.path} has no ground truth to evaluate against")
     tracks = read_tracks(tracks_csv, seq.n_frames)
-    return evaluate(seq.truth, tracks, seq.n_frames, protocol)
+    return evaluate(seq.truth, tracks, seq.n_frames, protocol, id_rule)
 
 
-def curves(truth: Truth, tracks: TrackTable, n_frames: int) -> dict[int, dict[str, np.ndarray]]:
+def curves(truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto") -> dict[int, dict[str, np.ndarray]]:
     """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,) for plots and the .rrd."""
     ch = truth.primary_channel()
     assert ch is not None
     gt = truth.boxes[ch]
     id_info = mot.idf1(gt, tracks.boxes) if tracks.boxes else {"mapping": {}}
-    which = track_for_truth(list(gt), tracks, id_info["mapping"])  # type: ignore[arg-type]
+    which = track_for_truth(list(gt), tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]
     out = {}
     for g, boxes in gt.items():
         t = which[g]

@@ -32,12 +32,13 @@ SCORE_KEYS = {
 MULTI_KEYS = ("mota", "idf1", "hota", "id_switches")
 
 
-def sequence_curves(seq_dir: Path, tracks_csv: Path, protocol: str) -> dict[str, object]:
+def sequence_curves(seq_dir: Path, tracks_csv: Path, protocol: str, id_rule: str = "auto") -> dict[str, object]:
     """Mean precision (51) and success (21) curves over the targets of one run, its frame
-    count with truth, and for ``gtot`` the hit counts to pool."""
+    count with truth, and for ``gtot`` the hit counts to pool (``id_rule`` as in
+    :func:`pipeline.eval.evaluate`)."""
     seq = open_sequence(seq_dir)
     tracks = read_tracks(tracks_csv, seq.n_frames)
-    per = target_curves(seq.truth, tracks, seq.n_frames)
+    per = target_curves(seq.truth, tracks, seq.n_frames, id_rule)
     prec = np.mean([c["precision"] for c in per.values()], axis=0)
     succ = np.mean([c["success"] for c in per.values()], axis=0)
     frames = int(sum(int((~np.isnan(c["errors"])).sum()) for c in per.values()))
@@ -49,7 +50,7 @@ def sequence_curves(seq_dir: Path, tracks_csv: Path, protocol: str) -> dict[str,
         mapping = idf1_assignment(seq.truth.boxes[ch], tracks.boxes)["mapping"] if tracks.boxes else {}
         counts = {"frames": 0, "precision_counts": np.zeros(51, int), "success_counts": np.zeros(51, int)}
         for g in ids:
-            t = g if g in tracks.boxes else mapping.get(g)  # type: ignore[union-attr]
+            t = g if (g in tracks.boxes and id_rule != "assign") else mapping.get(g)  # type: ignore[union-attr]
             pred = tracks.boxes[t] if t is not None else np.full((seq.n_frames, 4), np.nan)
             c = protocols.gtot_counts(pred, seq.truth.boxes.get("visible", {}).get(g),
                                       seq.truth.boxes.get("infrared", {}).get(g))

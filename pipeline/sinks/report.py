@@ -76,7 +76,8 @@ def write_report(out: Path, results: list, opts, wall_seconds: float, interrupte
             entry = dict(rec)
             if isinstance(s.get("metrics"), dict):
                 try:
-                    entry["curves"] = sequence_curves(t.seq_dir, t.run_dir / "tracks.csv", protocol)
+                    rule = "assign" if s.get("ids") == "detected" or not s.get("targets") else "truth"
+                    entry["curves"] = sequence_curves(t.seq_dir, t.run_dir / "tracks.csv", protocol, rule)
                 except Exception as e:  # noqa: BLE001 - a report must not die on one sequence
                     rec["report_warning"] = f"no curves: {e}"
             entries[t.tracker].append(entry)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from pipeline.errors import InputError
+from pipeline.trackers import detect as _detect
 from pipeline.trackers import dual as _dual
 from pipeline.trackers import kalman_camshift as _kc
 from pipeline.trackers import meanshift as _meanshift
@@ -15,12 +16,15 @@ _FACTORIES: dict[str, Callable[[object], Engine]] = {
     "dual": lambda cfg: FunctionalEngine("dual", _dual.init, _dual.step, cfg),
     "meanshift": lambda cfg: FunctionalEngine("meanshift", _meanshift.init, _meanshift.step, cfg),
     "kalman-camshift": lambda cfg: FunctionalEngine("kalman-camshift", _kc.init, _kc.step, cfg),
+    "detect": lambda cfg: FunctionalEngine("detect", _detect.init, _detect.step, cfg),
     "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),  # type: ignore[attr-defined]
     "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),  # type: ignore[attr-defined]
     "csrt": lambda cfg: OpenCVEngine("csrt", cfg.opencv),  # type: ignore[attr-defined]
     "kcf": lambda cfg: OpenCVEngine("kcf", cfg.opencv),  # type: ignore[attr-defined]
 }
 PEERS = ("camshift", "mil", "csrt", "kcf")
+NEEDS_NO_INIT = ("detect",)
+detect_init = _detect.detect_init
 DEFAULT_TRACKER = "dual"
 
 
@@ -45,4 +49,5 @@ def make_tracker(name: str, cfg: object) -> Engine:
     return factory(cfg)
 
 
-__all__ = ["DEFAULT_TRACKER", "PEERS", "Engine", "available_trackers", "make_tracker", "tracker_names"]
+__all__ = ["DEFAULT_TRACKER", "NEEDS_NO_INIT", "PEERS", "Engine", "available_trackers", "detect_init", "make_tracker",
+           "tracker_names"]

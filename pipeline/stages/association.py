@@ -1,0 +1,174 @@
+"""Global association of detections to tracks (the fusion paper's eq. 1-4 and 12-13).
+
+Each (detection m, track n) pair has a likelihood Λ = Λ_I · Λ_S: the image term from ROI
+correlation (``pipeline.stages.roi_match``) and the state term, the Gaussian innovation
+likelihood of the detection's position under the track's Kalman prediction (eq. 12-13)::
+
+    Λ_S = exp(-γ/2) / (2π √|S|),  γ = dᵀ S⁻¹ d,  d = z_m − ẑ_n
+
+A detection may also be a new target or a false alarm (the dummy track column, probability
+P_F) and a track may have no detection this frame (the dummy row, 1 − P_D). The
+assignment minimizing Σ −ln Λ over all of that is one Hungarian problem on the padded
+square matrix :func:`padded_cost` builds; :func:`hungarian` solves it. Pairs outside the
+gate (γ above a χ² quantile) are impossible.
+
+The associator is a swappable part: anything with the signature of :func:`hungarian`
+(cost matrix, miss costs per track, new costs per detection -> :class:`Assignment`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+IMPOSSIBLE = 1e9
+
+
+@dataclass(frozen=True)
+class AssociationConfig:
+    """Association of detections to tracks.
+
+    Parameters
+    ----------
+    detection_probability : float
+        P_D: a track's target is detected in a frame, in (0, 1); default 0.9.
+    false_alarm_probability : float
+        P_F: the likelihood given to a detection that starts a track or is clutter, > 0;
+        default 1e-4 (compared with Λ_S of a good match, ~1e-3 for a few px of error).
+    gate_chi2 : float
+        Pairs whose Mahalanobis γ exceeds this are impossible, > 0; default 13.8 (χ² with
+        2 degrees of freedom at 99.9 %).
+    use_image : bool
+        Multiply Λ_S by the image term Λ_I (fused); False: state only; default True.
+    use_state : bool
+        Use Λ_S (False: image only, still gated); default True.
+    associator : str
+        ``hungarian`` (default) or ``chnn`` where the CHNN associator is installed.
+    confirm_hits, confirm_window : int
+        A new track is confirmed after ``confirm_hits`` detections within its first
+        ``confirm_window`` frames (M of N); defaults 3 of 5.
+    max_misses : int
+        A confirmed track is lost after this many frames without a detection, >= 1; default 30.
+    max_merged_frames : int
+        ... or after this many frames merged into another target's blob, >= 1; default 90.
+    position_noise : float
+        Process noise of the tracks' constant-velocity Kalman filter (white acceleration,
+        (px/frame^2)^2), > 0; default 0.5: detected targets turn and stop.
+    position_std_px : float
+        Measurement noise of a detection's centre, px, > 0; default 2.
+    """
+
+    detection_probability: float = 0.9
+    false_alarm_probability: float = 1e-4
+    gate_chi2: float = 13.8
+    use_image: bool = True
+    use_state: bool = True
+    associator: str = "hungarian"
+    confirm_hits: int = 3
+    confirm_window: int = 5
+    max_misses: int = 30
+    max_merged_frames: int = 90
+    position_noise: float = 0.5
+    position_std_px: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.detection_probability < 1:
+            raise ValueError(f"association.detection_probability must be in (0, 1); got {self.detection_probability!r}")
+        if not self.false_alarm_probability > 0:
+            raise ValueError(f"association.false_alarm_probability must be > 0; got {self.false_alarm_probability!r}")
+        if not self.gate_chi2 > 0:
+            raise ValueError(f"association.gate_chi2 must be > 0; got {self.gate_chi2!r}")
+        if not (self.use_image or self.use_state):
+            raise ValueError("association needs use_image or use_state")
+        if self.associator not in ("hungarian", "chnn"):
+            raise ValueError(f"association.associator must be hungarian or chnn; got {self.associator!r}")
+        if not (isinstance(self.confirm_hits, int) and isinstance(self.confirm_window, int)
+                and 1 <= self.confirm_hits <= self.confirm_window):
+            raise ValueError("association.confirm_hits must be an integer in [1, confirm_window]")
+        if not (self.position_noise > 0 and self.position_std_px > 0):
+            raise ValueError("association.position_noise and association.position_std_px must be > 0")
+        if not (isinstance(self.max_misses, int) and self.max_misses >= 1):
+            raise ValueError(f"association.max_misses must be an integer >= 1; got {self.max_misses!r}")
+
+
+@dataclass(frozen=True)
+class Assignment:
+    """``pairs`` (track index, detection index); tracks and detections left over."""
+
+    pairs: tuple[tuple[int, int], ...]
+    unmatched_tracks: tuple[int, ...]
+    unmatched_detections: tuple[int, ...]
+    cost: float
+
+
+def mahalanobis2(d: np.ndarray, S: np.ndarray) -> float:
+    """γ = dᵀ S⁻¹ d."""
+    return float(d @ np.linalg.solve(S, d))
+
+
+def state_log_likelihood(z: np.ndarray, z_pred: np.ndarray, S: np.ndarray) -> tuple[float, float]:
+    """``(ln Λ_S, γ)`` of measurement ``z`` under the prediction ``z_pred`` with innovation
+    covariance ``S`` (eq. 12-13)."""
+    d = np.asarray(z, float) - np.asarray(z_pred, float)
+    gamma = mahalanobis2(d, S)
+    sign, logdet = np.linalg.slogdet(S)
+    return -0.5 * gamma - 0.5 * d.size * math.log(2 * math.pi) - 0.5 * logdet, gamma
+
+
+def state_log_likelihoods(z: np.ndarray, z_pred: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`state_log_likelihood` of every row of ``z`` (M, R) at once: ``(ln Λ_S (M,), γ (M,))``."""
+    d = np.asarray(z, float).reshape(-1, len(z_pred)) - np.asarray(z_pred, float)
+    Sinv = np.linalg.inv(S)
+    gamma = np.einsum("mi,ij,mj->m", d, Sinv, d)
+    sign, logdet = np.linalg.slogdet(S)
+    return -0.5 * gamma - 0.5 * d.shape[1] * math.log(2 * math.pi) - 0.5 * logdet, gamma
+
+
+def padded_cost(cost: np.ndarray, miss_cost: np.ndarray, new_cost: np.ndarray) -> np.ndarray:
+    """The (N + M) square matrix of the 2-D assignment with dummies.
+
+    Rows are the N tracks then M dummy rows; columns the M detections then N dummy
+    columns. Track n takes detection m at ``cost[n, m]`` or its own dummy column at
+    ``miss_cost[n]`` (not detected); detection m left to its own dummy row costs
+    ``new_cost[m]`` (new target or false alarm); dummy-to-dummy is free.
+    """
+    n, m = cost.shape
+    big = np.full((n + m, m + n), IMPOSSIBLE)
+    big[:n, :m] = np.minimum(cost, IMPOSSIBLE)
+    big[np.arange(n), m + np.arange(n)] = miss_cost
+    big[n + np.arange(m), np.arange(m)] = new_cost
+    big[n:, m:] = 0.0
+    return big
+
+
+def hungarian(cost: np.ndarray, miss_cost: np.ndarray, new_cost: np.ndarray) -> Assignment:
+    """The optimal assignment with dummies (Hungarian on :func:`padded_cost`)."""
+    cost = np.asarray(cost, float).reshape(len(miss_cost), len(new_cost))
+    n, m = cost.shape
+    if n == 0 or m == 0:
+        return Assignment((), tuple(range(n)), tuple(range(m)), float(np.sum(miss_cost)) + float(np.sum(new_cost)))
+    big = padded_cost(cost, np.asarray(miss_cost, float), np.asarray(new_cost, float))
+    r, c = linear_sum_assignment(big)
+    pairs = tuple((int(i), int(j)) for i, j in zip(r, c, strict=True) if i < n and j < m and big[i, j] < IMPOSSIBLE)
+    mt = {i for i, _ in pairs}
+    md = {j for _, j in pairs}
+    return Assignment(pairs, tuple(i for i in range(n) if i not in mt), tuple(j for j in range(m) if j not in md),
+                      float(big[r, c].sum()))
+
+
+Associator = Callable[[np.ndarray, np.ndarray, np.ndarray], Assignment]
+ASSOCIATORS: dict[str, Associator] = {"hungarian": hungarian}
+
+
+def get_associator(name: str) -> Associator:
+    """The associator registered as ``name`` (``hungarian``; ``chnn`` once its module is loaded)."""
+    if name == "chnn" and "chnn" not in ASSOCIATORS:
+        import pipeline.stages.chnn  # noqa: F401  (registers itself)
+    try:
+        return ASSOCIATORS[name]
+    except KeyError:
+        raise ValueError(f"unknown associator {name!r}; available: {', '.join(ASSOCIATORS)}") from None

@@ -1,0 +1,280 @@
+"""``--tracker detect``: targets found by STDM detection, associated globally every frame.
+
+The system of the ROI feature-matching fusion paper, no initial boxes needed:
+
+1. detect ROIs in the IR frame (``pipeline.stages.detection``; the visible one with
+   ``detection.channel = "visible"`` or when there is no IR);
+2. predict every track (the shared Kalman stage, constant velocity);
+3. for every pair inside the χ² gate: Λ_S from the innovation (eq. 12-13) and Λ_I, the
+   affine-invariant correlation of the track's last ROI chip with the detection's
+   (``pipeline.stages.roi_match``); cost −ln(Λ_I Λ_S);
+4. one global assignment with dummies for missed targets (1 − P_D) and new ones (P_F)
+   (``association.associator``: Hungarian, or CHNN);
+5. update matched tracks (box and template chip), coast the others; unmatched detections
+   start tentative tracks, confirmed after M of N frames; a track missed ``max_misses``
+   frames, or predicted out of the frame, is lost.
+
+Statuses: ``tentative`` (not yet confirmed; in targets.csv, not in tracks.csv),
+``tracking``, ``merged`` (not detected on its own but its prediction lies inside a detected
+blob: it coasts inside that blob, and the blob starts no new track), ``occluded-severe``
+(confirmed, coasting with no detection near), ``lost`` (the frame it is given up, then
+dropped). :func:`detect_init` gives the other trackers their
+initial targets from the first frames (``dualtrack track --detect``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.io.sequence import FramePair
+from pipeline.stages import kalman
+from pipeline.stages.association import get_associator, state_log_likelihoods
+from pipeline.stages.detection import Region, detect, to_grey
+from pipeline.stages.roi_match import image_likelihood, match_boxes
+from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
+
+
+@dataclass(frozen=True)
+class DetTrack:
+    """One track of the detection-driven tracker."""
+
+    id: int
+    kf: kalman.GaussianState
+    box: BBox
+    status: TargetStatus
+    born: int  # frame index of its first detection
+    hits: int
+    misses: int
+    template: np.ndarray  # grey frame the template ROI was last seen in
+    template_box: BBox
+
+
+@dataclass(frozen=True)
+class DetectState:
+    tracks: tuple[DetTrack, ...]
+    next_id: int
+    channel: str
+
+
+def _kcfg(cfg: object) -> kalman.KalmanConfig:
+    a = cfg.association  # type: ignore[attr-defined]
+    return dataclasses.replace(cfg.kalman, model="constant_velocity", position_noise=a.position_noise,  # type: ignore[attr-defined]
+                               size_noise=a.position_noise / 4, position_std_px=a.position_std_px)
+
+
+def _channel(frames: FramePair, preferred: str) -> str:
+    if getattr(frames, preferred) is not None:
+        return preferred
+    return "visible" if preferred == "infrared" else "infrared"
+
+
+def _new_track(tid: int, r: Region, grey: np.ndarray, frame: int, kcfg: kalman.KalmanConfig) -> DetTrack:
+    return DetTrack(tid, kalman.init_state(r.box, kcfg), r.box, TargetStatus.TENTATIVE, frame, 1, 0, grey, r.box)
+
+
+def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple[DetectState, FrameResult]:
+    """Start with no tracks (``targets`` are ignored: the detector finds them)."""
+    ch = _channel(frames, cfg.detection.channel)  # type: ignore[attr-defined]
+    state = DetectState((), 1, ch)
+    return step(state, frames, cfg)
+
+
+def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState], regions: Sequence[Region],
+               grey: np.ndarray, cfg: object, timing: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(cost N x M, Λ_I N x M (NaN outside the gate), γ N x M) of every track/detection pair."""
+    a = cfg.association  # type: ignore[attr-defined]
+    rm = cfg.roi_match  # type: ignore[attr-defined]
+    kcfg = _kcfg(cfg)
+    Hm, Rm = kalman.measurement_model(kcfg)
+    n, m = len(tracks), len(regions)
+    cost = np.full((n, m), np.inf)
+    lam_i = np.full((n, m), np.nan)
+    gam = np.full((n, m), np.inf)
+    if n == 0 or m == 0:
+        return cost, lam_i, gam
+    t0 = time.perf_counter()
+    z = np.array([r.centroid for r in regions])
+    img_s = 0.0
+    for i, (t, prior) in enumerate(zip(tracks, priors, strict=True)):
+        S = (Hm @ prior.P @ Hm.T + Rm)[:2, :2]
+        ll, g = state_log_likelihoods(z, prior.x[:2], S)  # every detection at once
+        gam[i] = g
+        for j in np.flatnonzero(g <= a.gate_chi2):
+            c = -ll[j] if a.use_state else 0.0
+            if a.use_image:
+                ti = time.perf_counter()
+                rho = match_boxes(t.template, t.template_box.as_tuple(), grey, regions[j].box.as_tuple(), rm).correlation
+                img_s += time.perf_counter() - ti
+                lam_i[i, j] = rho
+                c -= math.log(image_likelihood(rho, rm))
+            cost[i, j] = c
+    timing["roi_match"] = timing.get("roi_match", 0.0) + img_s
+    timing["gating"] = timing.get("gating", 0.0) + time.perf_counter() - t0 - img_s
+    return cost, lam_i, gam
+
+
+def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectState, FrameResult]:
+    """One frame: detect, predict, associate, update, manage tracks."""
+    a = cfg.association  # type: ignore[attr-defined]
+    kcfg = _kcfg(cfg)
+    F, Q = kalman.motion_model(kcfg)
+    Hm, Rm = kalman.measurement_model(kcfg)
+    timing: dict[str, float] = {}
+    t0 = time.perf_counter()
+    image = getattr(frames, state.channel)
+    grey = to_grey(image)
+    H, W = grey.shape
+    found = detect(grey, cfg.detection)  # type: ignore[attr-defined]
+    regions = list(found.regions)
+    t1 = time.perf_counter()
+    timing["detection"] = t1 - t0
+    priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]
+    # a detection holding the predicted centres of two or more confirmed targets is their merged blob:
+    # it measures none of them (they coast inside it) and starts no track
+    inside = [[i for i, (t, p) in enumerate(zip(state.tracks, priors, strict=True))
+               if t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])] for r in regions]
+    group = {j for j, members in enumerate(inside) if len(members) >= 2}
+    cost, lam_i, gam = pair_costs(state.tracks, priors, regions, grey, cfg, timing)
+    if group:
+        cost[:, sorted(group)] = np.inf
+    t2 = time.perf_counter()
+    miss = np.full(len(state.tracks), -math.log(1.0 - a.detection_probability))
+    new = np.full(len(regions), -math.log(a.false_alarm_probability))
+    assignment = get_associator(a.associator)(np.where(np.isfinite(cost), cost, 1e9), miss, new)
+    timing["association"] = time.perf_counter() - t2
+    matched = dict(assignment.pairs)
+
+    events: list[Event] = []
+    results: list[TargetResult] = []
+    tracks: list[DetTrack] = []
+    for i, (t, prior) in enumerate(zip(state.tracks, priors, strict=True)):
+        j = matched.get(i)
+        age = frames.index - t.born + 1
+        if j is not None:
+            r = regions[j]
+            upd = kalman.update(prior, kalman.box_measurement(r.box), Hm, Rm)
+            hits, misses = t.hits + 1, 0
+            status = t.status
+            if status == TargetStatus.TENTATIVE and hits >= a.confirm_hits:
+                status = TargetStatus.TRACKING
+                events.append(Event(EventKind.CONFIRMED, f"T{t.id} confirmed ({hits} detections in {age} frames)", (t.id,)))
+            elif status in (TargetStatus.OCCLUDED_SEVERE, TargetStatus.MERGED):
+                events.append(Event(EventKind.SPLIT if status == TargetStatus.MERGED else EventKind.OCCLUSION_END,
+                                    f"T{t.id} detected again on its own", (t.id,)))
+                status = TargetStatus.TRACKING
+            box = r.box
+            nt = dataclasses.replace(t, kf=upd.state, box=box, status=status, hits=hits, misses=misses, template=grey,
+                                     template_box=r.box)
+            rho = lam_i[i, j]
+            diag = {"gamma": float(gam[i, j]), "lambda_i": float(rho) if np.isfinite(rho) else float("nan"),
+                    "cost": float(cost[i, j]), "detections": float(len(regions))}
+            source = "detection"
+        elif t.status != TargetStatus.TENTATIVE and (k := _blob_containing(prior, regions)) is not None:
+            # not detected on its own but inside a detected blob: merged with another target; coast inside it
+            r = regions[k]
+            c = _inside(prior.x[:2], (float(prior.x[2]), float(prior.x[3])), r.box)
+            box = BBox.from_center(c[0], c[1], max(float(prior.x[2]), 1.0), max(float(prior.x[3]), 1.0))
+            hits, misses = t.hits, t.misses + 1
+            status = TargetStatus.MERGED
+            if t.status != TargetStatus.MERGED:
+                events.append(Event(EventKind.MERGE, f"T{t.id} merged into the blob at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
+                                    (t.id,)))
+            if misses > a.max_merged_frames:
+                status = TargetStatus.LOST
+                events.append(Event(EventKind.LOST, f"T{t.id} lost ({misses} frames inside a merged blob)", (t.id,)))
+            nt = dataclasses.replace(t, kf=prior, box=box, status=status, hits=hits, misses=misses)
+            diag = {"detections": float(len(regions)), "missing": float(misses)}
+            source = "kalman-in-blob"
+            rho = float("nan")
+        else:
+            hits, misses = t.hits, t.misses + 1
+            box = prior.box
+            status = t.status
+            if status == TargetStatus.TENTATIVE:
+                if age >= a.confirm_window:  # failed M of N: dropped without ever being reported
+                    continue
+            elif misses > a.max_misses or box.clip(W, H).area < 0.25 * box.area:
+                status = TargetStatus.LOST
+                why = "left the frame" if box.clip(W, H).area < 0.25 * box.area else f"{misses} frames without a detection"
+                events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
+            elif status in (TargetStatus.TRACKING, TargetStatus.MERGED):
+                status = TargetStatus.OCCLUDED_SEVERE
+                events.append(Event(EventKind.OCCLUSION_START, f"T{t.id} not detected (coasting)", (t.id,)))
+            nt = dataclasses.replace(t, kf=prior, box=box, status=status, hits=hits, misses=misses)
+            diag = {"detections": float(len(regions)), "missing": float(misses)}
+            source = "kalman"
+            rho = float("nan")
+        if status == TargetStatus.TENTATIVE and age >= a.confirm_window and hits < a.confirm_hits:
+            continue
+        conf = {TargetStatus.TRACKING: 1.0, TargetStatus.OCCLUDED_SEVERE: 0.3, TargetStatus.TENTATIVE: 0.2}.get(status, 0.0)
+        results.append(TargetResult(t.id, box, status, source, {}, float(rho) if np.isfinite(rho) else float("nan"),
+                                    "none", conf, (), diag, {"prediction": prior.box}))
+        if status != TargetStatus.LOST:
+            tracks.append(nt)
+    next_id = state.next_id
+    for j in assignment.unmatched_detections:
+        r = regions[j]
+        if j in group or any(t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2]) for t, p in zip(state.tracks, priors, strict=True)):
+            continue  # a blob around a known target (merged targets): not a new one
+        t = _new_track(next_id, r, grey, frames.index, kcfg)
+        events.append(Event(EventKind.BIRTH, f"T{next_id} born at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})", (next_id,)))
+        if a.confirm_hits <= 1:
+            t = dataclasses.replace(t, status=TargetStatus.TRACKING)
+        tracks.append(t)
+        results.append(TargetResult(next_id, r.box, t.status, "detection", {}, float("nan"), "none",
+                                    0.2 if t.status == TargetStatus.TENTATIVE else 1.0, (), {"detections": float(len(regions))}, {}))
+        next_id += 1
+    timing["detect_tracker"] = time.perf_counter() - t0
+    res = FrameResult(frames.index, tuple(sorted(results, key=lambda r: r.id)), tuple(events), timing)
+    return DetectState(tuple(tracks), next_id, state.channel), res
+
+
+def _contains(box: BBox, c: np.ndarray) -> bool:
+    return box.x <= float(c[0]) <= box.x2 and box.y <= float(c[1]) <= box.y2
+
+
+def _blob_containing(prior: kalman.GaussianState, regions: Sequence[Region]) -> int | None:
+    """Index of the detected region whose box holds the predicted centre (None if none does)."""
+    for k, r in enumerate(regions):
+        if _contains(r.box, prior.x[:2]):
+            return k
+    return None
+
+
+def _inside(c: np.ndarray, size: tuple[float, float], blob: BBox) -> tuple[float, float]:
+    """Centre ``c`` moved so that a box of ``size`` lies inside ``blob`` (centred where it cannot)."""
+    out = []
+    for v, sz, lo, hi in ((float(c[0]), size[0], blob.x, blob.x2), (float(c[1]), size[1], blob.y, blob.y2)):
+        a, b = lo + sz / 2, hi - sz / 2
+        out.append((lo + hi) / 2 if a > b else min(max(v, a), b))
+    return out[0], out[1]
+
+
+def detect_init(seq: object, cfg: object, frames_to_scan: int = 5) -> list[InitTarget]:
+    """Initial targets for another tracker: run the detection-driven tracker over the first
+    frames and take the tracks confirmed by then that were detected in frame 1, at their
+    frame-1 boxes, with ids 1..N left to right (an InputError when there is none)."""
+    from pipeline.errors import InputError
+
+    state: DetectState | None = None
+    n = min(frames_to_scan, seq.n_frames)  # type: ignore[attr-defined]
+    first: dict[int, BBox] = {}
+    res = None
+    for fp in seq.frames():  # type: ignore[attr-defined]
+        if fp.index > n:
+            break
+        state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
+        if fp.index == 1:
+            first = {r.id: r.box for r in res.targets}
+    assert state is not None and res is not None
+    found = [first[r.id] for r in res.targets if r.status == TargetStatus.TRACKING and r.id in first]
+    if not found:
+        raise InputError(f"--detect found no target in frame 1 confirmed within {n} frames of {seq.path}; "  # type: ignore[attr-defined]
+                         "pass --init x,y,w,h or tune the [detection] section")
+    return [InitTarget(k + 1, b) for k, b in enumerate(sorted(found, key=lambda b: (b.x, b.y)))]

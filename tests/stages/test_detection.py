@@ -1,0 +1,87 @@
+"""STDM detection: the map against a slow reference, segmentation, ROI features and discrimination."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from pipeline.stages.detection import DetectionConfig, clean, detect, discriminate, regions, segment, stdm
+
+
+def test_stdm_matches_the_slow_reference():
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (40, 50), dtype=np.uint8)
+    for w in (3, 7):
+        ref = ndimage.generic_filter(img.astype(np.float64), np.std, size=w, mode="reflect")
+        np.testing.assert_allclose(stdm(img, w), ref, atol=1e-3)
+    deep = (rng.normal(8000, 3, (30, 30))).astype(np.uint16)  # 14-bit IR, tiny variance: float64 path, never negative
+    ref = ndimage.generic_filter(deep.astype(np.float64), np.std, size=5, mode="reflect")
+    out = stdm(deep, 5)
+    assert out.dtype == np.float64 and out.min() >= 0
+    np.testing.assert_allclose(out, ref, atol=1e-6)
+
+
+def test_flat_frame_has_zero_deviation_and_no_detection():
+    flat = np.full((60, 80), 120, np.uint8)
+    assert stdm(flat, 7).max() == 0
+    assert detect(flat, DetectionConfig()).regions == ()
+
+
+def shapes() -> np.ndarray:
+    m = np.zeros((200, 300), np.uint8)
+    m[20:80, 20:45] = 1                                   # a person-like block: P ~ 166
+    cv2.circle(m, (150, 50), 20, 1, -1)                   # a disk: C2 ~ 1
+    m[150:156, 30:180] = 1                                # a long thin bar: elongated
+    m[100:106, 250:256] = 1                               # a speck: too small
+    cv2.rectangle(m, (200, 120), (280, 190), 1, 2)        # an outline ring: its outer contour holds it all
+    return m
+
+
+def test_region_features_on_hand_built_shapes():
+    regs = {(int(r.box.x), int(r.box.y)): r for r in regions(shapes())}
+    block = regs[(20, 20)]
+    assert block.area_px == 60 * 25 and block.box.as_tuple() == (20.0, 20.0, 25.0, 60.0)
+    assert block.perimeter_px == pytest.approx(2 * (59 + 24), abs=0.5)  # the polygon through pixel centres
+    assert block.aspect == pytest.approx(59 / 24, rel=0.05)
+    assert block.centroid == pytest.approx((32.5, 50.0), abs=0.01)
+    disk = regs[(130, 30)]
+    assert disk.c2 == pytest.approx(1.0, abs=0.15) and disk.c1 == pytest.approx(disk.perimeter_px / disk.area_px)
+    assert regs[(30, 150)].aspect > 20
+
+
+def test_discrimination_keeps_compact_targets_and_says_why_others_go():
+    cfg = DetectionConfig(perimeter_px=(60.0, 400.0), max_aspect=5.0, max_complexity=3.0)
+    ok, bad = discriminate(regions(shapes()), cfg)
+    kept = sorted((int(r.box.x), int(r.box.y)) for r in ok)
+    assert kept == [(20, 20), (130, 30), (199, 119)]
+    ring = next(r for r in ok if int(r.box.x) == 199)
+    assert abs(ring.area_px - 83 * 73) <= 8  # the outer contour's inside (cv2.rectangle rounds the corners)
+    reasons = {(int(r.box.x), int(r.box.y)): r.reason for r in bad}
+    assert reasons == {(30, 150): "elongated", (250, 100): "too-small"}
+    ok, bad = discriminate(regions(shapes()), DetectionConfig(perimeter_px=(60.0, 250.0)))
+    assert {(int(r.box.x), int(r.box.y)): r.reason for r in bad}[(199, 119)] == "too-large"
+
+
+def test_clean_fills_a_closed_ring_and_drops_specks():
+    cfg = DetectionConfig(min_area_px=60)
+    m = clean(shapes(), cfg)
+    assert m[150, 240] == 1  # inside the outline ring: filled
+    assert m[103, 253] == 0  # the 36 px speck: dropped
+
+
+def test_detects_warm_targets_on_a_textured_background():
+    rng = np.random.default_rng(1)
+    bg = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 6) + rng.normal(0, 2, (240, 320))
+    img = bg.copy()
+    truths = [(40, 90, 22, 56), (200, 60, 26, 60)]
+    for x, y, w, h in truths:
+        img[y:y + h, x:x + w] += 70
+    img = cv2.GaussianBlur(np.clip(img, 0, 255), (0, 0), 1.0).astype(np.uint8)
+    d = detect(img, DetectionConfig())
+    assert len(d.regions) == 2
+    for (x, y, w, h), r in zip(truths, sorted(d.regions, key=lambda r: r.box.x), strict=True):
+        assert r.centroid == pytest.approx((x + w / 2, y + h / 2), abs=2.0)
+        assert abs(r.box.w - w) <= 6 and abs(r.box.h - h) <= 6
+    assert segment(d.std_map, DetectionConfig()).sum() > 0

@@ -1,0 +1,60 @@
+"""The detection-driven tracker and ``dualtrack detect``: no initial boxes."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from pipeline.detect_run import run_detect
+from pipeline.run import RunOptions, run_track
+from tests.rrd_helpers import boxes_at, open_store
+
+
+@pytest.mark.parametrize("name", ["crossing2", "crossing3"])
+def test_tracks_crossings_without_initial_boxes(scene, tmp_path, name):
+    res = run_track(scene(name), RunOptions(tracker="detect", out_dir=tmp_path / name, rrd=False, plots=False))
+    m = res.summary["metrics"]
+    assert res.summary["targets"] == []  # nothing given
+    assert m["idf1"] >= 0.9 and m["mota"] >= 0.85, (m["idf1"], m["mota"])
+    assert m["p20"] >= 0.9  # each truth scored against the track the IDF1 assignment gives it
+    table = list(csv.DictReader((tmp_path / name / "targets.csv").read_text().splitlines()))
+    statuses = {r["status"] for r in table}
+    assert {"tentative", "tracking", "merged"} <= statuses  # births, confirmation, the crossing
+    tracks = np.loadtxt(tmp_path / name / "tracks.csv", delimiter=",", ndmin=2)
+    tentative = {(int(r["frame"]), int(r["id"])) for r in table if r["status"] == "tentative"}
+    assert not tentative & {(int(f), int(i)) for f, i in tracks[:, :2]}  # tentative tracks are not reported
+
+
+def test_image_term_is_what_keeps_identities_when_state_is_ambiguous(scene, tmp_path):
+    """Fused vs state-only on the crossing with full occlusion: the image term must not hurt."""
+    fused = run_track(scene("crossing2"), RunOptions(tracker="detect", out_dir=tmp_path / "f", rrd=False, plots=False))
+    state = run_track(scene("crossing2"), RunOptions(tracker="detect", out_dir=tmp_path / "s", rrd=False, plots=False,
+                                                    sets=["association.use_image=false"]))
+    assert fused.summary["metrics"]["idf1"] >= state.summary["metrics"]["idf1"] - 0.02
+
+
+def test_detect_command_outputs_and_scores(scene, tmp_path):
+    out = tmp_path / "det"
+    res = run_detect(scene("crossing3"), out, progress=False)
+    s = res.summary
+    assert s["complete"] and s["frames"] == 200 and s["channel"] == "infrared"
+    assert s["recall"] >= 0.95 and s["precision"] >= 0.9, s
+    det = np.loadtxt(out / "det.txt", delimiter=",", ndmin=2)
+    assert det.shape[1] == 10 and (det[:, 1] == -1).all() and set(np.unique(det[:, 0]).astype(int)) <= set(range(1, 201))
+    rois = list(csv.DictReader((out / "rois.csv").read_text().splitlines()))
+    assert {"1", "0"} >= {r["accepted"] for r in rois} and any(r["accepted"] == "1" for r in rois)
+    store = open_store(out / "detections.rrd")
+    b = boxes_at(store, "infrared/rois", 1)
+    assert b is not None and len(b["mins"]) == int((det[:, 0] == 1).sum())
+    np.testing.assert_allclose(b["mins"], det[det[:, 0] == 1][:, 2:4], atol=0.01)
+
+
+def test_detect_initialises_the_dual_tracker(scene, tmp_path):
+    res = run_track(scene("crossing2"), RunOptions(tracker="dual", detect=True, out_dir=tmp_path / "d", rrd=False,
+                                                   plots=False))
+    init = res.summary["targets"]
+    assert len(init) == 2  # the two people, found in the first frames
+    m = res.summary["metrics"]
+    assert m["idf1"] >= 0.9 and m["p20"] >= 0.9
