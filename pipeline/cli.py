@@ -43,6 +43,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--init", action="append", metavar="X,Y,W,H", help="initial box (repeatable; ids 1..N)")
     p.add_argument("--init-file", type=Path, help="file of x,y,w,h lines or MOT rows of frame 1")
     p.add_argument("--detect", action="store_true", help="find the initial targets automatically")
+    p.add_argument("--associator", choices=("hungarian", "chnn"), default=None,
+                   help="data association of --tracker detect (same as --set association.associator=...)")
     p.add_argument("--config", type=Path, help="TOML file of parameters ([section] tables)")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE", help="override one parameter")
     p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
@@ -117,7 +119,8 @@ def _cmd_track(a: argparse.Namespace) -> int:
 
     res = run_track(a.seq_dir, RunOptions(
         tracker=a.tracker or DEFAULT_TRACKER, out_dir=a.out, init=a.init, init_file=a.init_file, detect=a.detect,
-        channel=a.channel, align=a.align, gt_base=a.gt_base, config_path=a.config, sets=a.set,
+        channel=a.channel, align=a.align, gt_base=a.gt_base, config_path=a.config,
+        sets=a.set + ([f"association.associator={a.associator}"] if a.associator else []),
         rrd=not a.no_rrd, plots=not a.no_plots, protocol=a.protocol, force=a.force, stop_frame=a.frames,
     ))
     s = res.summary

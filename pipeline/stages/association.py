@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -48,9 +48,10 @@ class AssociationConfig:
         Use Λ_S (False: image only, still gated); default True.
     associator : str
         ``hungarian`` (default) or ``chnn`` where the CHNN associator is installed.
-    confirm_hits, confirm_window : int
-        A new track is confirmed after ``confirm_hits`` detections within its first
-        ``confirm_window`` frames (M of N); defaults 3 of 5.
+    confirm_hits : int
+        A new track is confirmed after this many detections (M of M-of-N), >= 1; default 3.
+    confirm_window : int
+        ... within its first this many frames (N), >= confirm_hits; default 5.
     max_misses : int
         A confirmed track is lost after this many frames without a detection, >= 1; default 30.
     max_merged_frames : int
@@ -103,6 +104,7 @@ class Assignment:
     unmatched_tracks: tuple[int, ...]
     unmatched_detections: tuple[int, ...]
     cost: float
+    details: dict[str, object] = field(default_factory=dict)  # associator-specific (CHNN: energies, gap)
 
 
 def mahalanobis2(d: np.ndarray, S: np.ndarray) -> float:

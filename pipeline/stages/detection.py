@@ -59,9 +59,11 @@ class DetectionConfig:
     min_std : float
         ... and exceeds this absolute floor (grey levels), >= 0; default 4.0 (flat noisy
         background does not fire).
-    open_px, close_px : int
-        Sizes of the opening (speckle) and closing (bridges the boundary ring) ellipses,
-        >= 1; defaults 3 and 7.
+    open_px : int
+        Size of the opening ellipse (removes speckle), px, >= 1; default 3.
+    close_px : int
+        Size of the closing ellipse (bridges the ring the STDM draws around a target's
+        boundary before the holes are filled), px, >= 1; default 7.
     min_area_px : int
         Components smaller than this (px) are dropped before discrimination, >= 1; default 60.
     perimeter_px : tuple[float, float]

@@ -58,6 +58,14 @@ class KalmanConfig:
         Prior sigma of the velocities at initialisation, px/frame, > 0; default 5.
     initial_acceleration_std_px_per_frame2 : float
         Prior sigma of the accelerations at initialisation, px/frame^2, > 0; default 1.
+    maneuver_adaptive : bool
+        Inflate the predicted covariance when the innovation says the target manoeuvres
+        (the fused-image CHNN paper's eq. 23-25, :func:`maneuver_factor`); default False.
+    maneuver_sigma : float
+        The test's sigma multiplier (the paper's D in eq. 23-24, not its image weight): an
+        innovation component beyond this many sigma counts as a manoeuvre, > 0; default 3.
+    maneuver_cap : float
+        Largest inflation factor, >= 1; default 100.
     """
 
     model: str = "constant_acceleration"
@@ -68,6 +76,9 @@ class KalmanConfig:
     size_std_px: float = 5.0
     initial_velocity_std_px_per_frame: float = 5.0
     initial_acceleration_std_px_per_frame2: float = 1.0
+    maneuver_adaptive: bool = False
+    maneuver_sigma: float = 3.0
+    maneuver_cap: float = 100.0
 
     def __post_init__(self) -> None:
         if self.model not in ("constant_acceleration", "constant_velocity"):
@@ -77,6 +88,10 @@ class KalmanConfig:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v > 0):
                 raise ValueError(f"kalman.{name} must be > 0; got {v!r}")
+        if not self.maneuver_sigma > 0:
+            raise ValueError(f"kalman.maneuver_sigma must be > 0; got {self.maneuver_sigma!r}")
+        if not self.maneuver_cap >= 1:
+            raise ValueError(f"kalman.maneuver_cap must be >= 1; got {self.maneuver_cap!r}")
 
     @property
     def order(self) -> int:
@@ -191,6 +206,27 @@ def update(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) ->
     y, S = innovation(prior, z, H, R)
     x, P = _fp_update(prior.x.reshape(-1, 1), prior.P, np.asarray(z, float).reshape(-1, 1), R, H)
     return KalmanUpdate(GaussianState(x.ravel(), P), y, S)
+
+
+def maneuver_factor(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, sigma: float) -> float:
+    """a_max of eq. 23-25: per measured component i, with innovation tau_i, delta_ii =
+    [H P H^T]_ii and R_ii, a_i = ((tau_i / sigma)^2 - R_ii) / delta_ii (the factor that
+    makes |tau_i| = sigma sqrt(a_i delta_ii + R_ii)); a_i > 1 exactly when |tau_i| >
+    sigma sqrt(S_ii). Returns max_i a_i."""
+    tau = np.asarray(z, float) - H @ prior.x
+    delta = np.diag(H @ prior.P @ H.T)
+    a = ((tau / sigma) ** 2 - np.diag(R)) / np.maximum(delta, 1e-12)
+    return float(a.max())
+
+
+def correct(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, cfg: KalmanConfig) -> KalmanUpdate:
+    """:func:`update`, after inflating the predicted covariance by ``a_max`` (capped) when
+    ``cfg.maneuver_adaptive`` and the innovation says the target manoeuvres (a_max > 1)."""
+    if cfg.maneuver_adaptive:
+        a = maneuver_factor(prior, z, H, R, cfg.maneuver_sigma)
+        if a > 1.0:
+            prior = GaussianState(prior.x, prior.P * min(a, cfg.maneuver_cap))
+    return update(prior, z, H, R)
 
 
 def log_likelihood(y: np.ndarray, S: np.ndarray) -> float:

@@ -158,7 +158,7 @@ def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectStat
         age = frames.index - t.born + 1
         if j is not None:
             r = regions[j]
-            upd = kalman.update(prior, kalman.box_measurement(r.box), Hm, Rm)
+            upd = kalman.correct(prior, kalman.box_measurement(r.box), Hm, Rm, kcfg)
             hits, misses = t.hits + 1, 0
             status = t.status
             if status == TargetStatus.TENTATIVE and hits >= a.confirm_hits:

@@ -577,7 +577,7 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
     # which the occluder may already have been cutting)
     history = t.history
     if measured:
-        kf = kalman.update(prior, kalman.box_measurement(out), Hm, Rm).state
+        kf = kalman.correct(prior, kalman.box_measurement(out), Hm, Rm, kcfg).state
         if source == "levelset":
             history = (*t.history, (float(frames.index), out.cx, out.cy, out.w, out.h))[-dcfg.history_frames:]
     else:
@@ -735,7 +735,7 @@ def finish_group(frames: FramePair, css: list[ColourStep], cfg: object, mode: st
             kf = cs.prior
             missing_n = t.missing + 1
         else:
-            kf = kalman.update(cs.prior, kalman.box_measurement(box), Hm, Rm).state
+            kf = kalman.correct(cs.prior, kalman.box_measurement(box), Hm, Rm, kcfg).state
         status = TargetStatus.LOST if missing_n > dcfg.max_missing_frames else TargetStatus.MERGED
         if status == TargetStatus.LOST:
             kf = stop(kf)

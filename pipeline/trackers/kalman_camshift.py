@@ -189,7 +189,7 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
     reference = t.reference
     severe_run = next_severe_run(grade, t.severe_run)
     if grade == Grade.NONE and found is not None:
-        kf = kalman.update(prior, kalman.box_measurement(found), H, R).state
+        kf = kalman.correct(prior, kalman.box_measurement(found), H, R, kcfg).state
         out, status, last_rect = found, TargetStatus.TRACKING, found
         if not missing:
             reference = reference.add(area, ocfg)
@@ -201,11 +201,11 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
         kf, status, source, last_rect = prior, TargetStatus.LOST, "kalman", t.last_rect
         out = BBox.from_center(pbox.cx, pbox.cy, t.last_rect.w, t.last_rect.h)
     elif grade == Grade.PARTIAL:
-        kf = kalman.update(prior, kalman.box_measurement(pbox), H, R).state
+        kf = kalman.correct(prior, kalman.box_measurement(pbox), H, R, kcfg).state
         out, status, source, last_rect = pbox, TargetStatus.OCCLUDED_PARTIAL, "kalman", pbox
     else:
         sized = BBox.from_center(pbox.cx, pbox.cy, t.last_rect.w, t.last_rect.h)
-        kf = kalman.update(prior, kalman.box_measurement(sized), H, R).state
+        kf = kalman.correct(prior, kalman.box_measurement(sized), H, R, kcfg).state
         out, status, source, last_rect = sized, TargetStatus.OCCLUDED_SEVERE, "kalman", t.last_rect
         if is_lost(severe_run, ocfg):
             status, kf = TargetStatus.LOST, prior

@@ -58,9 +58,13 @@ def test_failures_are_no_match_not_errors():
     tex = cv2.GaussianBlur(rng.normal(128, 40, (56, 56)).astype(np.float32), (0, 0), 3)
     m = ecc_match(flat, tex, RoiMatchConfig())
     assert not m.converged and math.isnan(m.correlation)
-    assert image_likelihood(m.correlation, RoiMatchConfig()) == 0.01
-    assert image_likelihood(-0.4, RoiMatchConfig()) == 0.01
-    assert image_likelihood(0.83, RoiMatchConfig()) == pytest.approx(0.83)
+    paper = RoiMatchConfig(sharpness=0.0)
+    assert image_likelihood(m.correlation, paper) == 0.01
+    assert image_likelihood(-0.4, paper) == 0.01
+    assert image_likelihood(0.83, paper) == pytest.approx(0.83)
+    sharp = RoiMatchConfig(sharpness=20.0, likelihood_floor=1e-6)
+    assert image_likelihood(0.97, sharp) == pytest.approx(math.exp(-0.6))
+    assert math.log(image_likelihood(0.97, sharp) / image_likelihood(0.80, sharp)) == pytest.approx(3.4)
 
 
 def test_ncc_is_gain_and_offset_invariant():
