@@ -502,3 +502,12 @@ def evolve(
                          dps_lut, de_lut, 0, 0, 0.0, areas)
         it += cfg.refine_iterations
     return LevelSetResult(phi, it, converged)
+
+
+def warm_up() -> None:
+    """Compile (first run) or load from numba's cache (later runs) the level-set kernel by evolving a
+    16x16 region once, so that a tracker's first frame does not pay for it: a cold compile takes
+    seconds and would otherwise be counted as tracking time (``fps_tracking``)."""
+    em = edge_map(np.zeros((16, 16), np.uint8), LevelSetConfig())
+    evolve(box_step((16, 16), (4.0, 4.0, 8.0, 8.0), 2.0), em, LevelSetConfig())
+

@@ -12,8 +12,17 @@ from pipeline.trackers import meanshift as _meanshift
 from pipeline.trackers.base import Engine, FunctionalEngine
 from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
 
+
+
+def _dual_engine(cfg: object) -> Engine:
+    from pipeline.stages.levelset import warm_up
+
+    warm_up()  # the numba kernel is compiled or loaded here, not inside the timed first frame
+    return FunctionalEngine("dual", _dual.init, _dual.step, cfg)
+
+
 _FACTORIES: dict[str, Callable[[object], Engine]] = {
-    "dual": lambda cfg: FunctionalEngine("dual", _dual.init, _dual.step, cfg),
+    "dual": _dual_engine,
     "meanshift": lambda cfg: FunctionalEngine("meanshift", _meanshift.init, _meanshift.step, cfg),
     "kalman-camshift": lambda cfg: FunctionalEngine("kalman-camshift", _kc.init, _kc.step, cfg),
     "detect": lambda cfg: FunctionalEngine("detect", _detect.init, _detect.step, cfg),
