@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pipeline.stages.histogram import KernelWindow, bhattacharyya, kernel_window, window_histogram
+from pipeline.stages.histogram import bhattacharyya, ellipse_model, ellipse_shift
 
 
 @dataclass(frozen=True)
@@ -104,8 +104,9 @@ class MeanShiftResult:
     no_support: bool
 
 
-def _window(bins: NDArray[np.int32], c: tuple[float, float], half: tuple[float, float]) -> KernelWindow:
-    return kernel_window(bins.shape, c[0], c[1], half[0], half[1])
+def _model(bins: NDArray[np.int32], c: tuple[float, float], half: tuple[float, float],
+           m: int) -> tuple[NDArray[np.float64], int, float]:
+    return ellipse_model(bins, c[0], c[1], half[0], half[1], m)
 
 
 def mean_shift(
@@ -141,42 +142,38 @@ def mean_shift(
         raise ValueError(f"bins must be 2-D; got shape {bins.shape}")
     m = q.shape[0]
     y0 = (float(start[0]), float(start[1]))
-    win0 = _window(bins, y0, half_size)
-    p0 = window_histogram(bins, win0, m)
+    p0, n0, mass0 = _model(bins, y0, half_size, m)
     rho0 = bhattacharyya(p0, q)
     halvings = 0
     eps2 = cfg.epsilon_px**2
     for it in range(1, cfg.max_iterations + 1):
-        if win0.k.size == 0:
+        if n0 == 0:
             return MeanShiftResult(y0, rho0, p0, it - 1, False, halvings, 0.0, True)
         ratio = np.zeros(m, np.float64)
         nz = p0 > 0
         ratio[nz] = np.sqrt(q[nz] / p0[nz])
-        w = ratio[bins[win0.rows, win0.cols]]
-        ws = w.sum()
+        ws, wx, wy = ellipse_shift(bins, ratio, y0[0], y0[1], float(half_size[0]), float(half_size[1]))
         if ws <= 0:
-            return MeanShiftResult(y0, rho0, p0, it - 1, False, halvings, win0.mass_fraction, True)
-        y1 = (float(np.dot(w, win0.xs) / ws), float(np.dot(w, win0.ys) / ws))
-        win1 = _window(bins, y1, half_size)
-        p1 = window_histogram(bins, win1, m)
+            return MeanShiftResult(y0, rho0, p0, it - 1, False, halvings, mass0, True)
+        y1 = (wx / ws, wy / ws)
+        p1, n1, mass1 = _model(bins, y1, half_size, m)
         rho1 = bhattacharyya(p1, q)
         n_half = 0
         while rho1 < rho0 and n_half < cfg.max_halvings:
             if (y1[0] - y0[0]) ** 2 + (y1[1] - y0[1]) ** 2 < eps2:
                 break
             y1 = (0.5 * (y0[0] + y1[0]), 0.5 * (y0[1] + y1[1]))
-            win1 = _window(bins, y1, half_size)
-            p1 = window_histogram(bins, win1, m)
+            p1, n1, mass1 = _model(bins, y1, half_size, m)
             rho1 = bhattacharyya(p1, q)
             n_half += 1
         halvings += n_half
         moved2 = (y1[0] - y0[0]) ** 2 + (y1[1] - y0[1]) ** 2
-        y0, win0, p0, rho0 = y1, win1, p1, rho1
+        y0, n0, p0, rho0, mass0 = y1, n1, p1, rho1, mass1
         if iter_callback is not None:
             iter_callback(MeanShiftIter(it, y0, rho0))
         if moved2 < eps2:
-            return MeanShiftResult(y0, rho0, p0, it, True, halvings, win0.mass_fraction, False)
-    return MeanShiftResult(y0, rho0, p0, cfg.max_iterations, False, halvings, win0.mass_fraction, False)
+            return MeanShiftResult(y0, rho0, p0, it, True, halvings, mass0, False)
+    return MeanShiftResult(y0, rho0, p0, cfg.max_iterations, False, halvings, mass0, False)
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ from pipeline.stages import kalman
 from pipeline.stages.contour import ContourResult, LevelSetMemory, extract_contour
 from pipeline.stages.merge import (associate, association_cost, choose_foreground_stable, eq11, kmeans_shares, lookalike_sets,
                                    merge_groups)
-from pipeline.stages.histogram import appearance_bins, bhattacharyya, kernel_histogram, kernel_window, search_roi
+from pipeline.stages.histogram import appearance_bins, bhattacharyya, ellipse_model, kernel_histogram, search_roi
 from pipeline.stages.meanshift import mean_shift
 from pipeline.stages.model_update import UpdateDecision, selective_update, should_update_model
 from pipeline.stages.motion import coast_start, hold_rates, stop
@@ -86,6 +86,12 @@ class DualConfig:
         A target measured by colour alone (its contour failed, not from low contrast)
         whose colour match is below this is reported as partially occluded, in [0, 1];
         default 0.75.
+    colour_trust_rho : float
+        Beyond the paper: a tracked (not occluded) target whose contour failed its checks for
+        any reason is still measured by its mean-shift position when the colour match
+        reaches this (no scale or model update from such a frame), in [0, 1]; default 0.85,
+        1 disables it. Without it a contour that lost a fast target's legs, with colour at
+        rho 0.9, let the track coast on its prediction and lose the target.
     partial_area_ratio : float
         A target whose contour box is smaller than this share of its expected box is
         reported as partially occluded (model and scale frozen), in (0, 1); default 0.6.
@@ -153,6 +159,7 @@ class DualConfig:
     colour_min_fraction: float = 0.3
     colour_min_rho: float = 0.6
     occlusion_rho: float = 0.75
+    colour_trust_rho: float = 0.85
     partial_area_ratio: float = 0.6
     reacquire_rho: float = 0.7
     reacquire_gate_px_per_frame: float = 1.0
@@ -171,7 +178,8 @@ class DualConfig:
     kmeans_iterations: int = 5
 
     def __post_init__(self) -> None:
-        for name in ("scale_rate", "colour_min_fraction", "colour_min_rho", "occlusion_rho", "reacquire_rho"):
+        for name in ("scale_rate", "colour_min_fraction", "colour_min_rho", "occlusion_rho", "colour_trust_rho",
+                     "reacquire_rho"):
             v = getattr(self, name)
             if not 0 <= v <= 1:
                 raise ValueError(f"dual.{name} must be in [0, 1]; got {v!r}")
@@ -369,12 +377,10 @@ def _near(candidate: BBox, predicted: BBox, t: DualTarget, dcfg: DualConfig) -> 
 
 def _match_at(bins: np.ndarray, q: np.ndarray, box: BBox, roi0: tuple[int, int], cfg: object) -> float:
     """Bhattacharyya coefficient of the model and the kernel histogram inside ``box`` (frame px)."""
-    win = kernel_window(bins.shape, box.cx - roi0[0], box.cy - roi0[1], box.w / 2, box.h / 2)
-    if win.mass_fraction < cfg.meanshift.min_mass_fraction:  # type: ignore[attr-defined]
+    p, n, mass_fraction = ellipse_model(bins, box.cx - roi0[0], box.cy - roi0[1], box.w / 2, box.h / 2, q.size)
+    if mass_fraction < cfg.meanshift.min_mass_fraction:  # type: ignore[attr-defined]
         return float("nan")
-    p = np.bincount(bins[win.rows, win.cols], weights=win.k, minlength=q.size)
-    total = p.sum()
-    return bhattacharyya(p / total, q) if total > 0 else 0.0
+    return bhattacharyya(p, q) if n > 0 else 0.0
 
 
 def _outside(box: BBox, shape: tuple[int, ...]) -> bool:
@@ -518,9 +524,11 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
     ref_area = reference_area(t)
     shrunk = contour_ok and c.box is not None and c.box.area < dcfg.partial_area_ratio * ref_area
     contour_clean = contour_ok and not shrunk and (not informative or np.isnan(rho_c) or rho_c >= dcfg.colour_min_rho)
-    colour_clean = (mode == "dual" and informative and rho1 >= dcfg.occlusion_rho
-                    and (c.reason == "low-contrast" or not dcfg.channel_weighting and not contour_ok))
     occluded_before = t.status != TargetStatus.TRACKING
+    colour_clean = (mode == "dual" and informative and rho1 >= dcfg.occlusion_rho
+                    and (c.reason == "low-contrast" or not dcfg.channel_weighting and not contour_ok
+                         or not contour_clean and not occluded_before and dcfg.channel_weighting
+                         and rho1 >= dcfg.colour_trust_rho and dcfg.colour_trust_rho < 1))
     candidate = c.box if contour_clean else (BBox.from_center(y1[0], y1[1], t.size[0], t.size[1]) if colour_clean else None)
     if candidate is not None and occluded_before and start is None and not _near(candidate, prior.box, t, dcfg):
         candidate = None
@@ -558,12 +566,10 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
         decision = should_update_model(0.0, not measured, bins is not None, h_contour is not None, mu_cfg)
     else:
         cx, cy = y2[0] - roi0[0], y2[1] - roi0[1]
-        win = kernel_window(bins.shape, cx, cy, size[0] / 2, size[1] / 2)
-        if win.mass_fraction < cfg.meanshift.min_mass_fraction:  # type: ignore[attr-defined]
+        p, _, mass_fraction = ellipse_model(bins, cx, cy, size[0] / 2, size[1] / 2, t.q.size)
+        if mass_fraction < cfg.meanshift.min_mass_fraction:  # type: ignore[attr-defined]
             decision = UpdateDecision(False, "window-cut-by-border")
         else:
-            p = np.bincount(bins[win.rows, win.cols], weights=win.k, minlength=t.q.size)
-            p = p / p.sum() if p.sum() > 0 else p
             rho2 = bhattacharyya(p, t.q)
             decision = should_update_model(rho2, False, True, True, mu_cfg)
             if decision.update:

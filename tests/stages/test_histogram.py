@@ -66,3 +66,23 @@ def test_search_roi_clipped_and_never_empty():
 def test_bad_config(kw):
     with pytest.raises(ValueError):
         HistogramConfig(**kw)
+
+
+@pytest.mark.parametrize("cx, cy, hx, hy", [(10.3, 7.8, 4.5, 6.2), (0.5, 0.5, 5.0, 3.0), (19.9, 14.2, 8.0, 9.0)])
+def test_compiled_ellipse_equals_the_window_route(cx, cy, hx, hy):
+    """The compiled one-pass histogram and mean-shift sums equal kernel_window + bincount exactly,
+    including windows cut by the image border."""
+    from pipeline.stages.histogram import ellipse_histogram, ellipse_model, ellipse_shift, window_histogram
+
+    bins = np.random.default_rng(3).integers(0, 8, (16, 20)).astype(np.int32)
+    win = kernel_window(bins.shape, cx, cy, hx, hy)
+    h, mass, n = ellipse_histogram(bins, cx, cy, hx, hy, 8)
+    np.testing.assert_array_equal(h, np.bincount(bins[win.rows, win.cols], weights=win.k, minlength=8))
+    assert n == win.k.size and mass == pytest.approx(win.k.sum(), rel=1e-12)
+    p, n2, frac = ellipse_model(bins, cx, cy, hx, hy, 8)
+    np.testing.assert_allclose(p, window_histogram(bins, win, 8), rtol=1e-12)
+    assert frac == pytest.approx(win.mass_fraction, rel=1e-12)
+    w = np.linspace(0.1, 1.0, 8)
+    sw, sx, sy = ellipse_shift(bins, w, cx, cy, hx, hy)
+    ww = w[bins[win.rows, win.cols]]
+    assert (sw, sx, sy) == pytest.approx((ww.sum(), ww @ win.xs, ww @ win.ys), rel=1e-12)

@@ -52,6 +52,19 @@ def test_beats_the_colour_only_tracker_where_colour_fails(scene):
     assert dual[1] >= ms[1] + 0.3, (dual, ms)
 
 
+def test_strong_colour_carries_a_target_whose_contour_fails(scene, tmp_path):
+    """Fast curved motion, seed 1: the contour loses the legs (shape change) while colour matches at rho 0.9.
+    Trusting that colour keeps the target (P@20 1.0); coasting on the prediction lost it (0.49)."""
+    d = scene("fast", seed=1)
+    trusted = run_track(d, RunOptions(tracker="dual", out_dir=tmp_path / "a", rrd=False, plots=False))
+    coasting = run_track(d, RunOptions(tracker="dual", out_dir=tmp_path / "b", rrd=False, plots=False,
+                                       sets=["dual.colour_trust_rho=1"]))
+    assert trusted.summary["metrics"]["p20"] >= 0.95
+    assert coasting.summary["metrics"]["p20"] < 0.7
+    table = list(csv.DictReader((tmp_path / "a" / "targets.csv").read_text().splitlines()))
+    assert any(r["source"] == "meanshift" and r["status"] == "tracking" for r in table)
+
+
 def test_contours_statuses_and_reasons_are_recorded(scene, tmp_path):
     out = run_track(scene("crossover"), RunOptions(tracker="dual", out_dir=tmp_path / "r")).out_dir
     table = list(csv.DictReader((out / "targets.csv").read_text().splitlines()))
