@@ -46,7 +46,8 @@ class DetectionConfig:
         width: high on the target's boundary).
     threshold : str
         ``global`` (default): a pixel is foreground when its STDM exceeds the frame's median
-        STDM by ``k_sigma`` robust deviations (1.4826 x the median absolute deviation);
+        STDM by ``k_sigma`` robust deviations (1.4826 x the median absolute deviation; both
+        medians over a regular grid of about 4 000 pixels, whatever the frame size);
         ``local``: exceeds the mean of the STDM over ``threshold_window_px`` by ``k_sigma``
         standard deviations there (algorithms.md §5 (a); measured worse on the synthetic
         scenes: a target fills much of its own window and raises its own threshold).
@@ -161,7 +162,8 @@ def stdm(frame: np.ndarray, window_px: int) -> np.ndarray:
 def segment(std_map: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
     """Foreground where the STDM exceeds the threshold (``cfg.threshold``) and ``min_std`` (uint8 0/1)."""
     if cfg.threshold == "global":
-        sub = std_map[::4, ::4].ravel()
+        step = max(1, int(np.sqrt(std_map.size / 4096)))  # about 4-5 thousand samples at any frame size
+        sub = std_map[::step, ::step].ravel()
         med = float(np.median(sub))
         mad = 1.4826 * float(np.median(np.abs(sub - med)))
         return ((std_map > med + cfg.k_sigma * mad) & (std_map > cfg.min_std)).astype(np.uint8)
@@ -174,6 +176,11 @@ def segment(std_map: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
 
 def clean(mask: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
     """Opening, closing, hole filling (outer contours drawn filled) and small components dropped."""
+    return _clean_contours(mask, cfg)[0]
+
+
+def _clean_contours(mask: np.ndarray, cfg: DetectionConfig) -> tuple[np.ndarray, list[np.ndarray]]:
+    """:func:`clean`'s mask and the outer contours it was filled from (those of its components)."""
     op = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (cfg.open_px, cfg.open_px))
     cl = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (cfg.close_px, cfg.close_px))
     m = cv2.morphologyEx(mask, cv2.MORPH_OPEN, op)
@@ -182,7 +189,7 @@ def clean(mask: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
     out = np.zeros_like(m)
     big = [c for c in contours if cv2.contourArea(c) + 0.5 * cv2.arcLength(c, True) + 1 >= cfg.min_area_px]
     cv2.drawContours(out, big, -1, 1, thickness=cv2.FILLED)
-    return out
+    return out, big
 
 
 def regions(mask: np.ndarray, min_area_px: int = 1) -> list[Region]:
@@ -192,6 +199,12 @@ def regions(mask: np.ndarray, min_area_px: int = 1) -> list[Region]:
     boundary length P, box, centroid, minimum-area rectangle. Cheap: no pass over the frame
     beyond ``findContours``."""
     contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    return regions_from_contours(contours, min_area_px)
+
+
+def regions_from_contours(contours: list[np.ndarray] | tuple[np.ndarray, ...], min_area_px: int = 1) -> list[Region]:
+    """:func:`regions` from outer contours already found (``CHAIN_APPROX_SIMPLE`` ones give the same
+    features: dropping collinear boundary points changes neither the length, the moments nor the hull)."""
     out = []
     for c in contours:
         perim = float(cv2.arcLength(c, True))
@@ -237,8 +250,8 @@ def discriminate(found: list[Region], cfg: DetectionConfig) -> tuple[list[Region
 def detect(frame: np.ndarray, cfg: DetectionConfig) -> Detections:
     """STDM, segmentation, clean-up, regions and discrimination on one frame."""
     s = stdm(frame, cfg.window_px)
-    mask = clean(segment(s, cfg), cfg)
-    ok, bad = discriminate(regions(mask, cfg.min_area_px), cfg)
+    mask, contours = _clean_contours(segment(s, cfg), cfg)
+    ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
     return Detections(tuple(_unpad(r, cfg.window_px) for r in ok), tuple(bad), s, mask)
 
 
