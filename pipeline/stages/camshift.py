@@ -76,13 +76,11 @@ def kernel_masked_histogram(f: Feature, box: BBox) -> np.ndarray:
     Border pixels count little, so a box next to a same-coloured occluder is judged mostly
     by what lies at its centre.
     """
-    from pipeline.stages.histogram import kernel_window
+    from pipeline.stages.histogram import ellipse_histogram_valid
 
-    win = kernel_window(f.bins.shape, box.cx, box.cy, box.w / 2.0, box.h / 2.0)
-    if win.k.size == 0:
-        return np.zeros(f.n_bins)
-    ok = f.valid[win.rows, win.cols]
-    h = np.bincount(f.bins[win.rows[ok], win.cols[ok]], weights=win.k[ok], minlength=f.n_bins)
+    if box.w <= 0 or box.h <= 0:
+        raise ValueError(f"half-axes must be positive; got ({box.w / 2.0}, {box.h / 2.0})")
+    h = ellipse_histogram_valid(f.bins, f.valid, float(box.cx), float(box.cy), box.w / 2.0, box.h / 2.0, f.n_bins)
     s = h.sum()
     return h / s if s > 0 else h
 

