@@ -326,8 +326,9 @@ def search_roi(box: BBox, margin: float, width: int, height: int) -> tuple[int, 
 def warm_up() -> None:
     """Compile (first run) or load from numba's cache the compiled histogram loops, so a tracker's
     first frame does not pay for it (0.1-0.3 s even from the cache, otherwise counted as tracking time)."""
-    bins = np.zeros((4, 4), np.int32)
-    ellipse_histogram(bins, 2.0, 2.0, 1.5, 1.5, 2)
-    ellipse_shift(bins, np.ones(2), 2.0, 2.0, 1.5, 1.5)
-    ellipse_histogram_valid(bins.astype(np.uint8), np.ones((4, 4), bool), 2.0, 2.0, 1.5, 1.5, 2)
+    for dtype in (np.int32, np.uint8):  # colour bins (hsv_bin_image) and intensity bins (intensity_bin_image)
+        bins = np.zeros((4, 4), dtype)
+        ellipse_histogram(bins, 2.0, 2.0, 1.5, 1.5, 2)
+        ellipse_shift(bins, np.ones(2), 2.0, 2.0, 1.5, 1.5)
+    ellipse_histogram_valid(np.zeros((4, 4), np.uint8), np.ones((4, 4), bool), 2.0, 2.0, 1.5, 1.5, 2)
 
