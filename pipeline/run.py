@@ -11,8 +11,11 @@ from __future__ import annotations
 
 import json
 import shutil
+import signal
+import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -206,8 +209,10 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
                 f"T{t.id} {t.box}" for t in targets)
             rrd_sink = RerunSink(out / "run.rrd", seq.channels, [t.id for t in targets], cfg.rerun, seq.name,
                                  config_to_dict(cfg), seq.truth.has_truth, start)
-        with Progress(n, f"{opts.tracker} {seq.name}", enabled=opts.progress) as bar:
+        with Progress(n, f"{opts.tracker} {seq.name}", enabled=opts.progress) as bar, _sigint_at_frame_end() as sigint:
             for s in iter_track(seq, engine, targets, n):
+                if sigint["count"]:
+                    raise KeyboardInterrupt
                 tracker_s += s.tracker_seconds
                 decode_s += s.decode_seconds
                 for k, v in s.result.stage_seconds.items():
@@ -260,6 +265,28 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
             write_plots(out / "plots", curves(truth, table, done, id_rule), f"{seq.name} / {opts.tracker}")
     write_json(out / "summary.json", summary)
     return RunResult(out, summary, complete, interrupted, error, boxes)
+
+
+@contextmanager
+def _sigint_at_frame_end() -> Iterator[dict[str, int]]:
+    """Ctrl-C is acted on between frames, so tracks.csv, targets.csv, the .rrd and summary.json always describe
+    the same frames (a KeyboardInterrupt between two of a frame's writes left the CSV one row ahead of the
+    summary). A second Ctrl-C interrupts at once. Outside the main thread signals are left alone."""
+    state = {"count": 0}
+    if threading.current_thread() is not threading.main_thread():
+        yield state
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        state["count"] += 1
+        if state["count"] > 1:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield state
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _truncate(seq: Sequence, n: int):
