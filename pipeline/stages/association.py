@@ -61,6 +61,11 @@ class AssociationConfig:
         (px/frame^2)^2), > 0; default 0.5: detected targets turn and stop.
     position_std_px : float
         Measurement noise of a detection's centre, px, > 0; default 2.
+    split_touching : bool
+        Whether the detection-driven tracker splits touching regions (``detection.
+        split_core_fraction``); default False: it keeps a blob that holds several tracks'
+        predictions as their merged blob, and split fragments of two crossing people measure
+        neither (crossing3 IDF1 0.993 without the split, 0.666 with it).
     """
 
     detection_probability: float = 0.9
@@ -75,6 +80,7 @@ class AssociationConfig:
     max_merged_frames: int = 90
     position_noise: float = 0.5
     position_std_px: float = 2.0
+    split_touching: bool = False
 
     def __post_init__(self) -> None:
         if not 0 < self.detection_probability < 1:

@@ -75,6 +75,17 @@ class DetectionConfig:
     max_complexity : float
         Largest accepted C2 = P^2 / (4 pi A), >= 1; default 3 (a person's filled silhouette
         measures 1.4-1.8, the rings of unfilled clutter 4-10).
+    split_core_fraction : float
+        Beyond the paper: a region whose distance transform has two or more cores above this
+        fraction of its maximum (two torsos joined at a narrower neck) is split, every pixel
+        going to its nearest core, in [0, 1); default 0.7, 0 disables. Measured on seven
+        synthetic scenes (every 5th frame): mean recall 0.969 without, 0.996 with (people
+        walking side by side or stacked in depth touch and were one region), precision
+        0.995 -> 1.000. The detection-driven tracker does not split unless
+        ``association.split_touching``.
+    split_min_core_px : int
+        Cores smaller than this (px) do not count, >= 1; default 10 (a head's core stays
+        under it).
     """
 
     channel: str = "infrared"
@@ -89,6 +100,8 @@ class DetectionConfig:
     perimeter_px: tuple[float, float] = (90.0, 600.0)
     max_aspect: float = 5.0
     max_complexity: float = 3.0
+    split_core_fraction: float = 0.7
+    split_min_core_px: int = 10
 
     def __post_init__(self) -> None:
         if self.threshold not in ("global", "local"):
@@ -111,6 +124,10 @@ class DetectionConfig:
             raise ValueError(f"detection.perimeter_px must be (min, max) with 0 <= min < max; got {self.perimeter_px!r}")
         if not self.max_aspect >= 1 or not self.max_complexity >= 1:
             raise ValueError("detection.max_aspect and detection.max_complexity must be >= 1")
+        if not 0 <= self.split_core_fraction < 1:
+            raise ValueError(f"detection.split_core_fraction must be in [0, 1); got {self.split_core_fraction!r}")
+        if not (isinstance(self.split_min_core_px, int) and self.split_min_core_px >= 1):
+            raise ValueError(f"detection.split_min_core_px must be an integer >= 1; got {self.split_min_core_px!r}")
 
 
 @dataclass(frozen=True)
@@ -192,6 +209,58 @@ def _clean_contours(mask: np.ndarray, cfg: DetectionConfig) -> tuple[np.ndarray,
     return out, big
 
 
+SPLIT_MIN_COMPLEXITY = 1.9  # C2 of the regions split on the synthetic scenes: 2.15-3.63; of single people: median 1.65
+
+
+def split_touching(contours: list[np.ndarray], core_fraction: float, min_core_px: int) -> list[np.ndarray]:
+    """Outer contours with every region of two or more distance-transform cores split in as many parts.
+
+    A core is a connected set of pixels farther than ``core_fraction`` x the region's largest
+    distance from its boundary, with at least ``min_core_px`` pixels; each pixel of the region
+    goes to its nearest core. Two bodies that touch at a narrower place (shoulders, a hand,
+    feet) have a core each; one body has one (its head and legs are too thin). Only regions
+    whose complexity C2 reaches ``SPLIT_MIN_COMPLEXITY`` are examined (two bodies make a
+    longer boundary for their area than one), which keeps the cost off ordinary regions.
+    """
+    if core_fraction <= 0:
+        return list(contours)
+    out: list[np.ndarray] = []
+    for c in contours:
+        perim = cv2.arcLength(c, True)
+        area = cv2.contourArea(c) + perim / 2 + 1
+        if perim * perim / (4 * math.pi * area) < SPLIT_MIN_COMPLEXITY:
+            out.append(c)
+            continue
+        x, y, w, h = cv2.boundingRect(c)
+        local = np.zeros((h + 2, w + 2), np.uint8)
+        cv2.drawContours(local, [c], -1, 1, thickness=cv2.FILLED, offset=(1 - x, 1 - y))
+        dist = cv2.distanceTransform(local, cv2.DIST_L2, 5)
+        n, lab, stats, _ = cv2.connectedComponentsWithStats((dist > core_fraction * dist.max()).astype(np.uint8),
+                                                            connectivity=8)
+        cores = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_core_px]
+        if len(cores) < 2:
+            out.append(c)
+            continue
+        markers = np.zeros(lab.shape, np.int32)
+        for k, i in enumerate(cores, start=1):
+            markers[lab == i] = k
+        # nearest core of every pixel: the label of the nearest zero pixel of "not a core"
+        _, nearest = cv2.distanceTransformWithLabels((markers == 0).astype(np.uint8), cv2.DIST_L2, 5,
+                                                     labelType=cv2.DIST_LABEL_PIXEL)
+        ys, xs = np.nonzero(markers)
+        owner = np.zeros(int(nearest.max()) + 1, np.int32)
+        owner[nearest[ys, xs]] = markers[ys, xs]
+        parts = owner[nearest] * local
+        pieces = []
+        for k in range(1, len(cores) + 1):
+            cs, _ = cv2.findContours((parts == k).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE,
+                                     offset=(x - 1, y - 1))
+            if cs:
+                pieces.append(max(cs, key=cv2.contourArea))
+        out.extend(pieces if len(pieces) >= 2 else [c])
+    return out
+
+
 def regions(mask: np.ndarray, min_area_px: int = 1) -> list[Region]:
     """Every outer component of ``mask`` with its features, all from its outer contour (a
     component's holes count as inside): pixel area ``A = polygon area + P/2 + 1`` (the
@@ -251,6 +320,7 @@ def detect(frame: np.ndarray, cfg: DetectionConfig) -> Detections:
     """STDM, segmentation, clean-up, regions and discrimination on one frame."""
     s = stdm(frame, cfg.window_px)
     mask, contours = _clean_contours(segment(s, cfg), cfg)
+    contours = split_touching(contours, cfg.split_core_fraction, cfg.split_min_core_px)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
     return Detections(tuple(_unpad(r, cfg.window_px) for r in ok), tuple(bad), s, mask)
 

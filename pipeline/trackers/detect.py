@@ -130,7 +130,8 @@ def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectStat
     image = getattr(frames, state.channel)
     grey = to_grey(image)
     H, W = grey.shape
-    found = detect(grey, cfg.detection)  # type: ignore[attr-defined]
+    dcfg = cfg.detection if a.split_touching else dataclasses.replace(cfg.detection, split_core_fraction=0.0)  # type: ignore[attr-defined]
+    found = detect(grey, dcfg)
     regions = list(found.regions)
     t1 = time.perf_counter()
     timing["detection"] = t1 - t0

@@ -85,3 +85,32 @@ def test_detects_warm_targets_on_a_textured_background():
         assert r.centroid == pytest.approx((x + w / 2, y + h / 2), abs=2.0)
         assert abs(r.box.w - w) <= 6 and abs(r.box.h - h) <= 6
     assert segment(d.std_map, DetectionConfig()).sum() > 0
+
+
+def test_touching_bodies_are_split_and_one_body_is_not():
+    """Two bodies joined by a hand give two regions at their own centres; one body with head and legs stays
+    one region (its head and legs are too thin to make a second core)."""
+    from pipeline.stages.detection import split_touching
+
+    def outer(mask):
+        cs, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        return list(cs)
+
+    def person(m, cx):
+        cv2.ellipse(m, (cx, 50), (11, 20), 0, 0, 360, 1, -1)  # torso
+        cv2.circle(m, (cx, 24), 6, 1, -1)  # head
+        cv2.rectangle(m, (cx - 8, 66), (cx - 4, 95), 1, -1)  # legs
+        cv2.rectangle(m, (cx + 4, 66), (cx + 8, 95), 1, -1)
+
+    one = np.zeros((110, 120), np.uint8)
+    person(one, 40)
+    assert len(split_touching(outer(one), 0.7, 10)) == 1
+    two = np.zeros((110, 120), np.uint8)
+    person(two, 40)
+    person(two, 66)
+    cv2.rectangle(two, (50, 48), (56, 51), 1, -1)  # a hand on the other's arm
+    assert len(outer(two)) == 1
+    parts = split_touching(outer(two), 0.7, 10)
+    centres = sorted(cv2.boundingRect(c)[0] + cv2.boundingRect(c)[2] / 2 for c in parts)
+    assert len(parts) == 2 and abs(centres[0] - 40.5) <= 3 and abs(centres[1] - 66.5) <= 3
+    assert len(split_touching(outer(two), 0.0, 10)) == 1  # 0 disables
