@@ -28,13 +28,16 @@ from scipy.optimize import linear_sum_assignment
 from pipeline.types import BBox
 
 
-def merge_test(a: BBox, b: BBox) -> bool:
-    """Eq. 10 on rows and columns: ``|cx_a - cx_b| < (w_a + w_b)/2`` and ``|cy_a - cy_b| < (h_a + h_b)/2``."""
-    return abs(a.cx - b.cx) < (a.w + b.w) / 2 and abs(a.cy - b.cy) < (a.h + b.h) / 2
+def merge_test(a: BBox, b: BBox, scale: float = 1.0) -> bool:
+    """Eq. 10 on rows and columns: ``|cx_a - cx_b| < (w_a + w_b)/2`` and ``|cy_a - cy_b| < (h_a + h_b)/2``
+    (``scale`` < 1 asks for a deeper overlap)."""
+    return abs(a.cx - b.cx) < scale * (a.w + b.w) / 2 and abs(a.cy - b.cy) < scale * (a.h + b.h) / 2
 
 
-def merge_groups(boxes: dict[int, BBox]) -> list[tuple[int, ...]]:
-    """Groups (sorted id tuples, two or more members) of targets linked by pairwise merges."""
+def merge_groups(boxes: dict[int, BBox], strict: frozenset[int] | set[int] = frozenset(),
+                 strict_scale: float = 1.0) -> list[tuple[int, ...]]:
+    """Groups (sorted id tuples, two or more members) of targets linked by pairwise merges; a pair with a
+    member in ``strict`` (just split) merges only under ``merge_test(..., strict_scale)``."""
     ids = sorted(boxes)
     parent = {i: i for i in ids}
 
@@ -46,7 +49,7 @@ def merge_groups(boxes: dict[int, BBox]) -> list[tuple[int, ...]]:
 
     for k, i in enumerate(ids):
         for j in ids[k + 1:]:
-            if merge_test(boxes[i], boxes[j]):
+            if merge_test(boxes[i], boxes[j], strict_scale if (i in strict or j in strict) else 1.0):
                 parent[find(i)] = find(j)
     groups: dict[int, list[int]] = {}
     for i in ids:

@@ -137,6 +137,12 @@ class DualConfig:
     merge_visible_rho : float
         In ``auto``, a merged member whose colour match reaches this is measured by its own
         mean shift, in [0, 1]; default 0.75 (0.6 and 0.68 lowered purity on group3).
+    split_hold_frames : int
+        Beyond the paper: for this many frames after targets split, they merge again only
+        when their boxes overlap deeply (``remerge_scale``), so two people parting at the
+        edge of the merge test do not flicker merge / split / merge, >= 0; default 3.
+    remerge_scale : float
+        The merge test's half-sizes are scaled by this during that hold, in (0, 1]; default 0.8.
     kmeans_iterations : int
         Passes of the k-means that locates look-alikes in a merged blob, in [1, 50]; default 5.
     role_margin : float
@@ -175,6 +181,8 @@ class DualConfig:
     association_motion_weight: float = 1.0
     lookalike_rho: float = 0.85
     merge_visible_rho: float = 0.75
+    split_hold_frames: int = 3
+    remerge_scale: float = 0.8
     kmeans_iterations: int = 5
 
     def __post_init__(self) -> None:
@@ -209,6 +217,10 @@ class DualConfig:
             raise ValueError(f"dual.split_min_area_fraction must be in (0, 1); got {self.split_min_area_fraction!r}")
         if not self.association_motion_weight >= 0:
             raise ValueError(f"dual.association_motion_weight must be >= 0; got {self.association_motion_weight!r}")
+        if not (isinstance(self.split_hold_frames, int) and self.split_hold_frames >= 0):
+            raise ValueError(f"dual.split_hold_frames must be an integer >= 0; got {self.split_hold_frames!r}")
+        if not 0 < self.remerge_scale <= 1:
+            raise ValueError(f"dual.remerge_scale must be in (0, 1]; got {self.remerge_scale!r}")
         if not (isinstance(self.onset_frames, int) and 0 <= self.onset_frames <= 10):
             raise ValueError(f"dual.onset_frames must be an integer in [0, 10]; got {self.onset_frames!r}")
         if not (isinstance(self.rewind_frames, int) and 0 <= self.rewind_frames <= 30):
@@ -230,6 +242,7 @@ class DualTarget:
     history: tuple[tuple[float, float, float, float, float], ...] = ()
     missing: int = 0
     last_update: str = "none"
+    split_frame: int = -1_000_000  # frame of the last split from a merge (re-merge hysteresis)
 
 
 @dataclass(frozen=True)
@@ -286,7 +299,8 @@ def step(state, frames: FramePair, cfg: object):
     # mean shift may sit on whoever hides it (a look-alike, above all) and would hold the group together
     live = {i: cs.box_prior if cs.t.status == TargetStatus.MERGED else cs.box1
             for i, cs in steps.items() if cs.t.status != TargetStatus.LOST}
-    groups = merge_groups(live) if dcfg.merge_handling and len(live) > 1 else []
+    held = {i for i, cs in steps.items() if frames.index - cs.t.split_frame <= dcfg.split_hold_frames}
+    groups = merge_groups(live, held, dcfg.remerge_scale) if dcfg.merge_handling and len(live) > 1 else []
     in_group = {i for g in groups for i in g}
     done: dict[int, tuple[DualTarget, TargetResult, list[Event]]] = {}
     new_groups = []
@@ -304,6 +318,8 @@ def step(state, frames: FramePair, cfg: object):
             ev.append(Event(EventKind.SPLIT, f"T{i} separated (merge test no longer holds)", (i,)))
             start = cs.box_prior.center
         done[i] = finish_single(frames, cs, cfg, state.mode, timing, start=start, events_in=ev)
+        if start is not None:
+            done[i] = (dataclasses.replace(done[i][0], split_frame=frames.index), *done[i][1:])
     new, results, events = [], [], []
     for t in state.targets:
         nt, r, ev = done[t.id]
@@ -680,8 +696,9 @@ def finish_group(frames: FramePair, css: list[ColourStep], cfg: object, mode: st
             ev = [Event(EventKind.SPLIT, f"T{cs.t.id} split from {'+'.join(f'T{k}' for k in ids)}; re-associated: {text}",
                         (cs.t.id,))] if i == pairs[0][0] else []
             t = dataclasses.replace(cs.t, memory=None, status=TargetStatus.OCCLUDED_PARTIAL)
-            out[cs.t.id] = finish_single(frames, dataclasses.replace(cs, t=t), cfg, mode, timing,
+            nt, res, evs = finish_single(frames, dataclasses.replace(cs, t=t), cfg, mode, timing,
                                          start=blobs[j].center, events_in=ev)
+            out[cs.t.id] = (dataclasses.replace(nt, split_frame=frames.index), res, evs)
         return out, None
 
     # still merged; a group contour without contrast (leaked into the background) places nobody

@@ -38,6 +38,13 @@ def test_merge_groups_joins_chains_of_pairs():
     assert merge_groups({}) == []
 
 
+def test_just_split_pairs_need_a_deeper_overlap_to_merge_again():
+    a, b = box(100, 100), box(118, 100)  # 20-px-wide boxes 18 px apart: eq. 10 holds, barely
+    assert merge_groups({1: a, 2: b}) == [(1, 2)]
+    assert merge_groups({1: a, 2: b}, strict={2}, strict_scale=0.8) == []  # 18 >= 0.8 x 20
+    assert merge_groups({1: a, 2: box(115, 100)}, strict={2}, strict_scale=0.8) == [(1, 2)]  # 15 < 16
+
+
 def test_foreground_is_the_best_colour_match_with_hysteresis():
     assert choose_foreground({1: 0.7, 2: 0.9}) == 2
     assert choose_foreground({1: math.nan, 2: math.nan}, {1: 3.0, 2: 1.0}) == 2  # no colour: nearest the blob

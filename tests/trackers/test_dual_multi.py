@@ -62,6 +62,10 @@ def test_merge_and_split_events_roles_and_drawing(scene, tmp_path):
     # after the merge both are tracked again, each on its own person (P@20 is checked above)
     last = {r["id"]: r["status"] for r in table if int(r["frame"]) == 160}
     assert last == {"1": "tracking", "2": "tracking"}
+    # one crossing, one merge episode: no merge / split / merge flicker as they part (dual.split_hold_frames)
+    for tid in ("1", "2"):
+        st = [r["status"] == "merged" for r in table if r["id"] == tid]
+        assert sum(x != y for x, y in zip(st, st[1:])) == 2, tid
 
     store = open_store(out / "run.rrd")
     log = [t for _f, t in texts(store, "events")]
