@@ -102,15 +102,15 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
         out["purity"] = mot.purity_matrix(gt, tracks.boxes, fm)
         out.update(mot.hota(gt, tracks.boxes, n_frames))
     out["targets"] = per
-    return _clean(out)  # type: ignore[return-value]
+    return json_safe(out)  # type: ignore[return-value]
 
 
-def _clean(x: object) -> object:
-    """NaN/inf become None so the result is strict JSON."""
+def json_safe(x: object) -> object:
+    """``x`` with numpy scalars made Python numbers and NaN/inf made None, so it dumps as strict JSON."""
     if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
+        return {k: json_safe(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
-        return [_clean(v) for v in x]
+        return [json_safe(v) for v in x]
     if isinstance(x, float | np.floating):
         return float(x) if math.isfinite(float(x)) else None
     if isinstance(x, np.integer):
@@ -146,4 +146,4 @@ def curves(truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto
     return out
 
 
-__all__ = ["curves", "evaluate", "evaluate_files"]
+__all__ = ["curves", "evaluate", "evaluate_files", "json_safe"]

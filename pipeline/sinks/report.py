@@ -24,24 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.eval import json_safe
 from pipeline.eval.aggregate import SCORE_KEYS, aggregate, sequence_curves
 from pipeline.io.attributes import read_root_table, sequence_attributes
 
 HEADLINE = {"default": ("p20", "auc"), "rgbt234": ("mpr", "msr"), "gtot": ("mpr", "msr"), "lasher": ("pr", "npr", "sr")}
 LABEL = {"p5": "P@5", "p20": "P@20", "auc": "AUC", "mpr": "MPR", "msr": "MSR", "npr": "NPR", "pr": "PR", "sr": "SR",
          "mota": "MOTA", "idf1": "IDF1", "hota": "HOTA", "purity": "purity", "id_switches": "ID sw."}
-
-
-def _clean(x: object) -> object:
-    if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_clean(v) for v in x]
-    if isinstance(x, float | np.floating):
-        return float(x) if math.isfinite(float(x)) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
 
 
 def _f(v: object, nd: int = 3) -> str:
@@ -97,7 +86,7 @@ def write_report(out: Path, results: list, opts, wall_seconds: float, interrupte
         o["attributes"] = by_attr
         overall[trk] = o
 
-    report = _clean({"protocol": protocol, "trackers": trackers, "wall_seconds": round(wall_seconds, 3),
+    report = json_safe({"protocol": protocol, "trackers": trackers, "wall_seconds": round(wall_seconds, 3),
                      "interrupted": interrupted, "sequences": sequences, "overall": overall})
     (out / "report.json").write_text(json.dumps(report, indent=1) + "\n")
 

@@ -76,11 +76,11 @@ def kernel_masked_histogram(f: Feature, box: BBox) -> np.ndarray:
     Border pixels count little, so a box next to a same-coloured occluder is judged mostly
     by what lies at its centre.
     """
-    from pipeline.stages.histogram import ellipse_histogram_valid
+    from pipeline.stages.histogram import ellipse_histogram
 
     if box.w <= 0 or box.h <= 0:
         raise ValueError(f"half-axes must be positive; got ({box.w / 2.0}, {box.h / 2.0})")
-    h = ellipse_histogram_valid(f.bins, f.valid, float(box.cx), float(box.cy), box.w / 2.0, box.h / 2.0, f.n_bins)
+    h = ellipse_histogram(f.bins, float(box.cx), float(box.cy), box.w / 2.0, box.h / 2.0, f.n_bins, f.valid)[0]
     s = h.sum()
     return h / s if s > 0 else h
 

@@ -14,6 +14,7 @@ back-projection is a numpy lookup ``hist[bins]``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import cv2
 import numba
@@ -173,12 +174,12 @@ def _ellipse_range(n: int, c: float, h: float) -> tuple[int, int]:  # pragma: no
 
 
 @numba.njit(cache=True)
-def ellipse_histogram(bins, cx, cy, hx, hy, n_bins):  # pragma: no cover (compiled)
+def ellipse_histogram(bins, cx, cy, hx, hy, n_bins, valid=None):  # pragma: no cover (compiled)
     """Unnormalized kernel histogram of the ellipse at ``(cx, cy)`` with half-axes ``(hx, hy)``.
 
     The same pixels, weights and summation order as ``kernel_window`` + ``np.bincount``
-    (row-major), in one compiled pass without temporaries. Returns (histogram, kernel
-    mass inside the image, pixel count).
+    (row-major), in one compiled pass without temporaries; with ``valid`` (bool image) only
+    the pixels where it is true count. Returns (histogram, kernel mass, pixel count).
     """
     H, W = bins.shape
     c0, c1 = _ellipse_range(W, cx, hx)
@@ -194,32 +195,12 @@ def ellipse_histogram(bins, cx, cy, hx, hy, n_bins):  # pragma: no cover (compil
         for c in range(c0, c1):
             dx = (c + 0.5 - cx) / hx
             r2 = dy2 + dx * dx
-            if r2 < 1.0:
+            if r2 < 1.0 and (valid is None or valid[r, c]):
                 k = 1.0 - r2
                 hist[bins[r, c]] += k
                 mass += k
                 n += 1
     return hist, mass, n
-
-
-@numba.njit(cache=True)
-def ellipse_histogram_valid(bins, valid, cx, cy, hx, hy, n_bins):  # pragma: no cover (compiled)
-    """:func:`ellipse_histogram` over the pixels where ``valid`` is true only."""
-    H, W = bins.shape
-    c0, c1 = _ellipse_range(W, cx, hx)
-    r0, r1 = _ellipse_range(H, cy, hy)
-    hist = np.zeros(n_bins, np.float64)
-    for r in range(r0, r1):
-        dy = (r + 0.5 - cy) / hy
-        dy2 = dy * dy
-        if dy2 >= 1.0:
-            continue
-        for c in range(c0, c1):
-            dx = (c + 0.5 - cx) / hx
-            r2 = dy2 + dx * dx
-            if r2 < 1.0 and valid[r, c]:
-                hist[bins[r, c]] += 1.0 - r2
-    return hist
 
 
 @numba.njit(cache=True)
@@ -323,12 +304,14 @@ def search_roi(box: BBox, margin: float, width: int, height: int) -> tuple[int, 
     return x0, y0, x1, y1
 
 
+@cache
 def warm_up() -> None:
     """Compile (first run) or load from numba's cache the compiled histogram loops, so a tracker's
-    first frame does not pay for it (0.1-0.3 s even from the cache, otherwise counted as tracking time)."""
+    first frame does not pay for it (0.1-0.3 s even from the cache, otherwise counted as tracking time).
+    Runs once per process."""
     for dtype in (np.int32, np.uint8):  # colour bins (hsv_bin_image) and intensity bins (intensity_bin_image)
         bins = np.zeros((4, 4), dtype)
         ellipse_histogram(bins, 2.0, 2.0, 1.5, 1.5, 2)
         ellipse_shift(bins, np.ones(2), 2.0, 2.0, 1.5, 1.5)
-    ellipse_histogram_valid(np.zeros((4, 4), np.uint8), np.ones((4, 4), bool), 2.0, 2.0, 1.5, 1.5, 2)
+    ellipse_histogram(np.zeros((4, 4), np.uint8), 2.0, 2.0, 1.5, 1.5, 2, np.ones((4, 4), bool))  # CamShift's test
 

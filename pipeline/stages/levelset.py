@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import cv2
 import numba
@@ -277,6 +277,18 @@ def _luts(eps: float) -> tuple[np.ndarray, np.ndarray]:
     return dps, de
 
 
+@numba.njit(cache=True, boundscheck=False)
+def _mirror_border(phi):  # pragma: no cover (compiled)
+    """Neumann border in place, as :func:`_neumann`: the outer rows/columns copy the second ones in."""
+    H, W = phi.shape
+    for j in range(W):
+        phi[0, j] = phi[2, j]
+        phi[H - 1, j] = phi[H - 3, j]
+    for i in range(H):
+        phi[i, 0] = phi[i, 2]
+        phi[i, W - 1] = phi[i, W - 3]
+
+
 @numba.njit(cache=True, boundscheck=False, fastmath=True)
 def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_lut, de_lut,
                      check_every, stop_back, stop_tol, areas):  # pragma: no cover
@@ -327,12 +339,7 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
             if n_checks > stop_back and abs(area - areas[n_checks - 1 - stop_back]) <= max(1.0, stop_tol * area):
                 break
         done = it + 1
-        for j in range(W):
-            phi[0, j] = phi[2, j]
-            phi[H - 1, j] = phi[H - 3, j]
-        for i in range(H):
-            phi[i, 0] = phi[i, 2]
-            phi[i, W - 1] = phi[i, W - 3]
+        _mirror_border(phi)
         # near over the scan box, and its bounding box
         b0, b1, d0, d1 = H, -1, W, -1
         for i in range(r0, r1 + 1):
@@ -430,12 +437,7 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                     a1[i, j] = 0
                 a2[i, j] = 0
         r0, r1, c0, c1 = R0, R1, C0, C1
-    for j in range(W):
-        phi[0, j] = phi[2, j]
-        phi[H - 1, j] = phi[H - 3, j]
-    for i in range(H):
-        phi[i, 0] = phi[i, 2]
-        phi[i, W - 1] = phi[i, W - 3]
+    _mirror_border(phi)
     return done, n_checks
 
 
@@ -504,10 +506,11 @@ def evolve(
     return LevelSetResult(phi, it, converged)
 
 
+@cache
 def warm_up() -> None:
     """Compile (first run) or load from numba's cache (later runs) the level-set kernel by evolving a
     16x16 region once, so that a tracker's first frame does not pay for it: a cold compile takes
-    seconds and would otherwise be counted as tracking time (``fps_tracking``)."""
+    seconds and would otherwise be counted as tracking time (``fps_tracking``). Runs once per process."""
     em = edge_map(np.zeros((16, 16), np.uint8), LevelSetConfig())
     evolve(box_step((16, 16), (4.0, 4.0, 8.0, 8.0), 2.0), em, LevelSetConfig())
 

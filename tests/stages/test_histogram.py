@@ -82,6 +82,11 @@ def test_compiled_ellipse_equals_the_window_route(cx, cy, hx, hy):
     p, n2, frac = ellipse_model(bins, cx, cy, hx, hy, 8)
     np.testing.assert_allclose(p, window_histogram(bins, win, 8), rtol=1e-12)
     assert frac == pytest.approx(win.mass_fraction, rel=1e-12)
+    valid = np.random.default_rng(4).random(bins.shape) < 0.7  # CamShift's mask of pixels with colour
+    ok = valid[win.rows, win.cols]
+    hv, _, nv = ellipse_histogram(bins, cx, cy, hx, hy, 8, valid)
+    np.testing.assert_array_equal(hv, np.bincount(bins[win.rows[ok], win.cols[ok]], weights=win.k[ok], minlength=8))
+    assert nv == int(ok.sum())
     w = np.linspace(0.1, 1.0, 8)
     sw, sx, sy = ellipse_shift(bins, w, cx, cy, hx, hy)
     ww = w[bins[win.rows, win.cols]]
