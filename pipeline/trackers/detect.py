@@ -25,6 +25,7 @@ initial targets from the first frames (``dualtrack track --detect``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Sequence
@@ -35,7 +36,7 @@ import numpy as np
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
 from pipeline.stages.association import get_associator, state_log_likelihoods
-from pipeline.stages.detection import Region, detect, to_grey
+from pipeline.stages.detection import DetectionConfig, Region, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
 
@@ -119,6 +120,13 @@ def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState
     return cost, lam_i, gam
 
 
+@functools.lru_cache(maxsize=8)
+def _detection_cfg(dcfg: DetectionConfig, split_touching: bool) -> DetectionConfig:
+    """The detection settings the tracker runs with: touching regions are split only on request
+    (``association.split_touching``); made once per configuration, not every frame."""
+    return dcfg if split_touching else dataclasses.replace(dcfg, split_core_fraction=0.0)
+
+
 def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectState, FrameResult]:
     """One frame: detect, predict, associate, update, manage tracks."""
     a = cfg.association  # type: ignore[attr-defined]
@@ -130,8 +138,7 @@ def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectStat
     image = getattr(frames, state.channel)
     grey = to_grey(image)
     H, W = grey.shape
-    dcfg = cfg.detection if a.split_touching else dataclasses.replace(cfg.detection, split_core_fraction=0.0)  # type: ignore[attr-defined]
-    found = detect(grey, dcfg)
+    found = detect(grey, _detection_cfg(cfg.detection, a.split_touching))  # type: ignore[attr-defined]
     regions = list(found.regions)
     t1 = time.perf_counter()
     timing["detection"] = t1 - t0
