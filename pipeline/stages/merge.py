@@ -10,7 +10,8 @@ Small decisions kept apart from the code that acts on them:
 * :func:`choose_foreground`: the target whose colour matches its model best (eq. 3) is in
   front, the others are occluded;
 * :func:`eq11` places an occluded target of a pair by mirroring the foreground about the
-  merged blob's centre, ``y_{1,2} = 2 y_2 - y_{1,1}``;
+  merged blob's centre, ``y_{1,2} = 2 y_2 - y_{1,1}``; :func:`inside_blob` keeps a member's
+  box inside the merged blob's box;
 * :func:`associate` re-associates targets with the separate blobs of a split by a global
   assignment (Hungarian) on a cost matrix;
 * beyond the paper, :func:`lookalike_sets` finds targets whose colour models match each
@@ -70,6 +71,16 @@ def choose_foreground(rhos: dict[int, float], distances: dict[int, float] | None
 def eq11(merged_center: tuple[float, float], foreground: tuple[float, float]) -> tuple[float, float]:
     """Eq. 11: the occluded target of a pair, ``2 y2 - y_foreground``."""
     return (2 * merged_center[0] - foreground[0], 2 * merged_center[1] - foreground[1])
+
+
+def inside_blob(center: tuple[float, float], size: tuple[float, float], blob: BBox) -> tuple[float, float]:
+    """``center`` moved the least distance that puts a box of ``size`` inside ``blob``, per axis; on an
+    axis where the box is larger than the blob, the blob's centre."""
+    out = []
+    for c, s, lo, hi in ((center[0], size[0], blob.x, blob.x2), (center[1], size[1], blob.y, blob.y2)):
+        a, b = lo + s / 2, hi - s / 2
+        out.append((lo + hi) / 2 if a > b else min(max(c, a), b))
+    return out[0], out[1]
 
 
 def association_cost(rho: np.ndarray, distance: np.ndarray, scale: np.ndarray, motion_weight: float) -> np.ndarray:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.stages.merge import (associate, association_cost, choose_foreground, choose_foreground_stable, eq11,
+from pipeline.stages.merge import (associate, association_cost, choose_foreground, choose_foreground_stable, eq11, inside_blob,
                                    kmeans_shares, lookalike_sets, merge_groups, merge_test)
 from pipeline.types import BBox
 
@@ -53,6 +53,14 @@ def test_foreground_is_the_best_colour_match_with_hysteresis():
     assert choose_foreground_stable({1: 0.90, 2: 0.93}, previous=1, margin=0.05) == 1
     assert choose_foreground_stable({1: 0.90, 2: 0.96}, previous=1, margin=0.05) == 2
     assert choose_foreground_stable({1: 0.90, 2: 0.93}, previous=None, margin=0.05) == 2
+
+
+def test_inside_blob_moves_a_box_the_least_distance_into_the_blob():
+    blob = BBox(100.0, 50.0, 60.0, 80.0)  # x 100..160, y 50..130
+    assert inside_blob((130.0, 90.0), (20.0, 40.0), blob) == (130.0, 90.0)  # already inside: unchanged
+    assert inside_blob((95.0, 90.0), (20.0, 40.0), blob) == (110.0, 90.0)  # sticks out left: left edges meet
+    assert inside_blob((158.0, 125.0), (20.0, 40.0), blob) == (150.0, 110.0)  # out right and below
+    assert inside_blob((95.0, 90.0), (70.0, 40.0), blob) == (130.0, 90.0)  # wider than the blob: its centre
 
 
 def test_eq11_mirrors_the_foreground_about_the_merged_centre():
