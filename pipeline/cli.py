@@ -88,6 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trackers", default=None, help="comma-separated tracker names")
     p.add_argument("--json", type=Path, help="also write the table as JSON")
     p.add_argument("--out", type=Path, help="keep the run folders here (default: a temporary folder)")
+    p.add_argument("--repeat", type=int, default=1, metavar="N",
+                   help="time every run N times and keep the fastest (default 1)")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
     p.add_argument("--config", type=Path)
     _add_open_options(p)
@@ -193,7 +195,7 @@ def _cmd_bench(a: argparse.Namespace) -> int:
             counts = [int(v) for v in a.targets.split(",") if v.strip()]
         except ValueError:
             raise InputError(f"--targets takes comma-separated integers; got {a.targets!r}") from None
-        rows = run_scaling(counts, trackers, out=a.out, sets=a.set, config_path=a.config)
+        rows = run_scaling(counts, trackers, out=a.out, sets=a.set, config_path=a.config, repeat=a.repeat)
         if a.json:
             a.json.write_text(json.dumps({"rows": rows}, indent=2) + "\n")
         print(format_scaling(rows))
@@ -201,7 +203,7 @@ def _cmd_bench(a: argparse.Namespace) -> int:
     if not a.seq_dirs:
         raise InputError("bench needs sequence folders, or --targets N,N,... for the fps-vs-targets table")
     rows = run_bench(a.seq_dirs, trackers, out=a.out, json_path=a.json, sets=a.set, config_path=a.config,
-                     channel=a.channel, align=a.align, gt_base=a.gt_base)
+                     repeat=a.repeat, channel=a.channel, align=a.align, gt_base=a.gt_base)
     print(format_table(rows))
     return 0
 

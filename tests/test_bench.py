@@ -18,6 +18,18 @@ def test_bench_table_and_json(scene, tmp_path):
     assert json.loads((tmp_path / "b.json").read_text())["rows"][1]["tracker"] == "camshift"
 
 
+def test_bench_repeat_keeps_the_fastest_run(scene, tmp_path, capsys):
+    rows = run_bench([scene("pole-fast")], ["meanshift"], repeat=3)
+    r = rows[0]
+    assert r["repeat"] == 3 and len(r["fps_tracking_runs"]) == 3
+    assert r["fps_tracking"] == max(r["fps_tracking_runs"]) and r["p20"] is not None
+    from pipeline.cli import main
+
+    assert main(["bench", str(scene("pole-fast")), "--repeat", "0"]) == 1
+    err = capsys.readouterr().err
+    assert "--repeat must be an integer >= 1" in err and err.count("\n") == 1
+
+
 def test_fps_vs_targets_table(tmp_path):
     from pipeline.bench import format_scaling, run_scaling
 
