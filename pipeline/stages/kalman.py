@@ -45,9 +45,9 @@ class KalmanConfig:
         Time step, frames, > 0; default 1.
     position_noise : float
         Process noise intensity q of x, y, (px/frame^3)^2 for the white-jerk model or
-        (px/frame^2)^2 for the white-acceleration model, > 0; default 0.05. Increasing
+        (px/frame^2)^2 for the white-acceleration model, > 0; default 0.01. Increasing
         it follows manoeuvres faster and trusts the prediction less during occlusion,
-        and makes the velocity carried through an occlusion noisier. Default 0.01.
+        and makes the velocity carried through an occlusion noisier.
     size_noise : float
         Process noise intensity q of w, h (same units), > 0; default 0.005.
     position_std_px : float
