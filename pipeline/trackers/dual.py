@@ -32,6 +32,16 @@ note shows it helps):
   target through frames where neither channel measures it, and re-acquires it near the
   prediction (a full occlusion by a static object). The coast starts from a line through
   the recent clean measurements (``pipeline.stages.motion``).
+
+Known weakness (measured over seeds 0-4 of the synthetic scenes): the IR contour is
+warm-started where the mean shift went, so when the colour model follows a person into a
+cast shadow (``shadows`` seeds 2-4, the match stays at rho 0.85-0.9) the contour follows
+it and the target is lost (P@20 0.78 / 0.43 / 0.48). Moving the warm start by the motion
+prior instead, with the region covering both positions, fixed those three (P@20 1.000)
+but lost ``hot-distractor`` and ``occluder`` (1.0 -> 0.52, 0.98 -> 0.53), where the IR
+merges with a warm neighbour and the colour is the channel that is right; the two cues
+disagree by the same few pixels in both cases, so deciding which to follow needs more
+than their distance.
 """
 
 from __future__ import annotations
