@@ -35,7 +35,7 @@ note shows it helps):
 
 Known weakness (measured over seeds 0-4 of the synthetic scenes): the IR contour is
 warm-started where the mean shift went, so when the colour model follows a person into a
-cast shadow (``shadows`` seeds 2-4, the match stays at rho 0.85-0.9) the contour follows
+cast shadow (``shadows`` seeds 2-4, the match stays at rho 0.82-0.90) the contour follows
 it and the target is lost (P@20 0.78 / 0.43 / 0.48). Moving the warm start by the motion
 prior instead, with the region covering both positions, fixed those three (P@20 1.000)
 but lost ``hot-distractor`` and ``occluder`` (1.0 -> 0.52, 0.98 -> 0.53), where the IR
