@@ -22,11 +22,14 @@ thermal crossover).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
 
 import cv2
+import numba
 import numpy as np
 
 from pipeline.stages.levelset import LevelSetConfig, box_step, edge_map, evolve
+from pipeline.stages.levelset import warm_up as _warm_up_levelset  # noqa: I001
 from pipeline.types import BBox, Points
 
 
@@ -160,29 +163,43 @@ def warm_phi(memory: LevelSetMemory, shift: tuple[float, float], origin: tuple[i
     return np.clip(phi, -c0, c0).astype(np.float32)
 
 
+@numba.njit(cache=True, boundscheck=False)  # no fastmath: the same float32 arithmetic as numpy
+def _reach(phi, mask, fixed, lo, hi, step, along_rows):  # pragma: no cover (compiled)
+    """Farthest fraction of a pixel beyond the inside pixel centres of line ``fixed`` (a column when
+    ``along_rows``, else a row) where phi crosses 0 towards ``fixed + step``; 0.5 past the array edge."""
+    n = phi.shape[1] if along_rows else phi.shape[0]
+    if fixed + step < 0 or fixed + step >= n:
+        return 0.5
+    best = np.float32(-1.0)
+    for k in range(lo, hi):
+        if along_rows:
+            if not mask[k, fixed]:
+                continue
+            inside, outside = phi[k, fixed], phi[k, fixed + step]
+        else:
+            if not mask[fixed, k]:
+                continue
+            inside, outside = phi[fixed, k], phi[fixed + step, k]
+        d = outside - inside
+        if d > 0:
+            f = -inside / d
+            f = min(max(f, np.float32(0.0)), np.float32(1.0))
+        else:
+            f = np.float32(0.5)
+        best = max(best, f)
+    return 0.5 if best < 0 else float(best)
+
+
 def _subpixel_box(phi: np.ndarray, mask: np.ndarray) -> tuple[float, float, float, float]:
     """Box (x0, y0, x1, y1) of ``mask`` with each edge at the farthest interpolated zero crossing of phi
     along the rows (left, right) or columns (top, bottom) that reach the mask's extreme."""
-    c0, r0, bw, bh = cv2.boundingRect(mask.astype(np.uint8))
+    m = mask.astype(np.uint8)
+    c0, r0, bw, bh = cv2.boundingRect(m)
     c1, r1 = c0 + bw - 1, r0 + bh - 1
-    h, w = phi.shape
-
-    def reach(inside: np.ndarray, outside: np.ndarray | None) -> float:
-        # farthest fraction of a pixel beyond the inside pixel centres where phi crosses 0
-        if outside is None or inside.size == 0:
-            return 0.5
-        d = outside - inside
-        frac = np.where(d > 0, np.clip(-inside / np.where(d > 0, d, 1.0), 0.0, 1.0), 0.5)
-        return float(frac.max())
-
-    rl = np.flatnonzero(mask[:, c0])
-    left = c0 + 0.5 - reach(phi[rl, c0], phi[rl, c0 - 1] if c0 > 0 else None)
-    rr = np.flatnonzero(mask[:, c1])
-    right = c1 + 0.5 + reach(phi[rr, c1], phi[rr, c1 + 1] if c1 < w - 1 else None)
-    ct = np.flatnonzero(mask[r0])
-    top = r0 + 0.5 - reach(phi[r0, ct], phi[r0 - 1, ct] if r0 > 0 else None)
-    cb = np.flatnonzero(mask[r1])
-    bottom = r1 + 0.5 + reach(phi[r1, cb], phi[r1 + 1, cb] if r1 < h - 1 else None)
+    left = c0 + 0.5 - _reach(phi, m, c0, r0, r1 + 1, -1, True)
+    right = c1 + 0.5 + _reach(phi, m, c1, r0, r1 + 1, 1, True)
+    top = r0 + 0.5 - _reach(phi, m, r0, c0, c1 + 1, -1, False)
+    bottom = r1 + 0.5 + _reach(phi, m, r1, c0, c1 + 1, 1, False)
     return left, top, right, bottom
 
 
@@ -286,3 +303,13 @@ def extract_contour(
     elif abs(contrast) < cfg.min_contrast:
         reason = "low-contrast"
     return ContourResult(reason == "ok", reason, box, contour, res.iterations, contrast, mem, tuple(comps), warm)
+
+
+@cache
+def warm_up() -> None:
+    """Compile or load the contour stage's numba kernels (the level set's and :func:`_reach`) once per
+    process, so that a tracker's first timed frame does not pay for it."""
+    _warm_up_levelset()
+    phi = np.full((6, 6), 2.0, np.float32)
+    phi[2:4, 2:4] = -2.0
+    _subpixel_box(phi, phi < 0)

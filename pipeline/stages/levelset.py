@@ -162,9 +162,23 @@ def _central_diff(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _central_diff_fast(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(d/dx, d/dy) by central differences with OpenCV (replicated border; float32)."""
-    dx = cv2.Sobel(a, cv2.CV_32F, 1, 0, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
-    dy = cv2.Sobel(a, cv2.CV_32F, 0, 1, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
+    """(d/dx, d/dy) by central differences, replicated border, float32: the values of
+    ``cv2.Sobel(a, CV_32F, 1, 0 / 0, 1, ksize=1, scale=0.5, BORDER_REPLICATE)`` (tested equal) in one
+    compiled pass instead of two OpenCV calls (8 vs 38 us on a 95x48 region)."""
+    return _diff_pair(np.ascontiguousarray(a, dtype=np.float32))
+
+
+@numba.njit(cache=True, boundscheck=False)  # no fastmath: the same float32 arithmetic as OpenCV's
+def _diff_pair(a):  # pragma: no cover (compiled)
+    H, W = a.shape
+    dx = np.empty((H, W), np.float32)
+    dy = np.empty((H, W), np.float32)
+    half = np.float32(0.5)
+    for i in range(H):
+        im, ip = max(i - 1, 0), min(i + 1, H - 1)
+        for j in range(W):
+            dx[i, j] = (a[i, min(j + 1, W - 1)] - a[i, max(j - 1, 0)]) * half
+            dy[i, j] = (a[ip, j] - a[im, j]) * half
     return dx, dy
 
 
@@ -511,6 +525,6 @@ def warm_up() -> None:
     """Compile (first run) or load from numba's cache (later runs) the level-set kernel by evolving a
     16x16 region once, so that a tracker's first frame does not pay for it: a cold compile takes
     seconds and would otherwise be counted as tracking time (``fps_tracking``). Runs once per process."""
-    em = edge_map(np.zeros((16, 16), np.uint8), LevelSetConfig())
+    em = edge_map(np.zeros((16, 16), np.uint8), LevelSetConfig())  # also compiles _diff_pair
     evolve(box_step((16, 16), (4.0, 4.0, 8.0, 8.0), 2.0), em, LevelSetConfig())
 

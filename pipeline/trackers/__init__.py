@@ -15,9 +15,9 @@ from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker
 
 
 def _dual_engine(cfg: object) -> Engine:
-    from pipeline.stages.levelset import warm_up
+    from pipeline.stages.contour import warm_up
 
-    warm_up()  # the numba kernel is compiled or loaded here, not inside the timed first frame
+    warm_up()  # the numba kernels are compiled or loaded here, not inside the timed first frame
     return FunctionalEngine("dual", _dual.init, _dual.step, cfg)
 
 

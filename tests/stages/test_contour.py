@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from pipeline.stages.contour import ContourConfig, extract_contour
+from pipeline.stages.contour import ContourConfig, _subpixel_box, extract_contour
 from pipeline.stages.levelset import LevelSetConfig
 from pipeline.types import BBox
 
@@ -28,6 +28,21 @@ def test_subpixel_box_of_a_planted_target():
     assert c.ok and c.reason == "ok" and c.contrast > 40
     np.testing.assert_allclose(c.box.as_tuple(), (80, 50, 24, 56), atol=1.5)  # thermal blur softens the edges
     assert c.contour and c.contour[0].shape[1] == 2
+
+
+def test_subpixel_edges_at_the_interpolated_zero_crossings():
+    # phi = |col - 5| - 2.3 on rows 4..11, +1 elsewhere: inside columns 3..7, zero crossings at column
+    # indices 2.7 and 7.3, i.e. x = 3.2 and 7.8 in pixel-corner coordinates; on the top and bottom rows
+    # the farthest crossing is in column 5 (phi -2.3 inside, +1 outside: 2.3/3.3 of a pixel out)
+    phi = np.ones((16, 12), np.float32)
+    phi[4:12] = np.abs(np.arange(12) - 5.0) - 2.3
+    x0, y0, x1, y1 = _subpixel_box(phi, phi < 0)
+    assert (x0, x1) == pytest.approx((3.2, 7.8), abs=1e-6)
+    top_frac = 2.3 / 3.3
+    assert (y0, y1) == pytest.approx((4.5 - top_frac, 11.5 + top_frac), abs=1e-6)
+    edge = np.ones((6, 6), np.float32)
+    edge[:, :3] = -1  # the mask touches the array's left edge: half a pixel beyond the last centre
+    assert _subpixel_box(edge, edge < 0)[0] == 0.0
 
 
 def test_warm_start_tracks_the_displacement():

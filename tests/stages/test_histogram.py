@@ -6,6 +6,7 @@ import pytest
 
 from pipeline.stages.histogram import (
     HistogramConfig,
+    _luts,
     bhattacharyya,
     bhattacharyya_distance,
     hsv_bin_image,
@@ -28,6 +29,20 @@ def test_hsv_bins_exact():
     expect = (h * 16 // 180) * 16 + (s * 4 // 256) * 4 + v * 4 // 256
     np.testing.assert_array_equal(hsv_bin_image(bgr, CFG)[0], expect)
     assert hsv_bin_image(bgr, CFG).max() < CFG.hsv_bins == 256
+
+
+@pytest.mark.parametrize("cfg", [CFG, HistogramConfig(hue_bins=8, saturation_bins=8, value_bins=4),
+                                 HistogramConfig(value_bins=1)])
+def test_compiled_bin_sum_equals_the_opencv_route(cfg):
+    # every 8-bit HSV triple the conversion can give, through split + three LUTs + two saturating adds
+    h, s, v = np.meshgrid(np.arange(180), np.arange(0, 256, 5), np.arange(0, 256, 5), indexing="ij")
+    bgr = cv2.cvtColor(np.stack([h, s, v], -1).reshape(180, -1, 3).astype(np.uint8), cv2.COLOR_HSV2BGR)
+    hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
+    lh, ls, lv = _luts(cfg)
+    ch = cv2.split(hsv)
+    ref = cv2.add(cv2.add(cv2.LUT(ch[0], lh), cv2.LUT(ch[1], ls)), cv2.LUT(ch[2], lv))
+    np.testing.assert_array_equal(hsv_bin_image(bgr, cfg), ref)
+    np.testing.assert_array_equal(hsv_bin_image(bgr[:, 5:40], cfg), ref[:, 5:40])  # a non-contiguous crop
 
 
 def test_intensity_bins_exact():

@@ -40,6 +40,17 @@ def test_warm_start_follows_a_moved_target():
     assert _iou(res.phi < 0, truth2) >= 0.9
 
 
+def test_compiled_differences_equal_opencv_sobel():
+    rng = np.random.default_rng(3)
+    for h, w in ((1, 1), (1, 7), (9, 1), (2, 3), (31, 17)):
+        a = rng.normal(0, 40, (h, w)).astype(np.float32)
+        dx, dy = L._central_diff_fast(a)
+        for got, (ox, oy) in ((dx, (1, 0)), (dy, (0, 1))):
+            ref = cv2.Sobel(a, cv2.CV_32F, ox, oy, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
+            np.testing.assert_array_equal(got, ref)
+    assert L._central_diff_fast(np.array([[0, 2, 6]], np.float32))[0].tolist() == [[1.0, 3.0, 2.0]]
+
+
 def test_fast_kernel_equals_reference_step():
     img, truth = _blob()
     cfg = L.LevelSetConfig()
