@@ -190,6 +190,45 @@ def _reach(phi, mask, fixed, lo, hi, step, along_rows):  # pragma: no cover (com
     return 0.5 if best < 0 else float(best)
 
 
+def _ring_contrast(roi: np.ndarray, sel_u8: np.ndarray) -> float:
+    """Mean IR of the selection minus the mean of the ring around it (its 7x7 dilation minus itself),
+    0 without a ring; the float32 means of numpy, in one compiled pass (unless the sums could
+    exceed float32's exact integers, where numpy's own route runs)."""
+    if int(sel_u8.size) * 255 >= 1 << 24:
+        sel = sel_u8.astype(bool)
+        ring = cv2.dilate(sel_u8, np.ones((7, 7), np.uint8)).astype(bool) & ~sel
+        roi_f = roi.astype(np.float32)
+        return float(roi_f[sel].mean() - roi_f[ring].mean()) if ring.any() else 0.0
+    return _ring_contrast_kernel(np.ascontiguousarray(roi), sel_u8)
+
+
+@numba.njit(cache=True, boundscheck=False)  # no fastmath
+def _ring_contrast_kernel(roi, sel):  # pragma: no cover (compiled)
+    H, W = sel.shape
+    near = np.zeros((H, W), np.uint8)  # selection dilated along rows by 3 px
+    for i in range(H):
+        for j in range(W):
+            for jj in range(max(j - 3, 0), min(j + 4, W)):
+                if sel[i, jj]:
+                    near[i, j] = 1
+                    break
+    s_in = n_in = s_ring = n_ring = 0
+    for i in range(H):
+        for j in range(W):
+            if sel[i, j]:
+                s_in += roi[i, j]
+                n_in += 1
+                continue
+            for ii in range(max(i - 3, 0), min(i + 4, H)):
+                if near[ii, j]:
+                    s_ring += roi[i, j]
+                    n_ring += 1
+                    break
+    if n_ring == 0 or n_in == 0:
+        return 0.0
+    return float(np.float32(s_in) / np.float32(n_in) - np.float32(s_ring) / np.float32(n_ring))
+
+
 def _subpixel_box(phi: np.ndarray, mask: np.ndarray) -> tuple[float, float, float, float]:
     """Box (x0, y0, x1, y1) of ``mask`` with each edge at the farthest interpolated zero crossing of phi
     along the rows (left, right) or columns (top, bottom) that reach the mask's extreme."""
@@ -285,9 +324,7 @@ def extract_contour(
     touches = by <= 1 or bx <= 1 or by + bh - 1 >= h - 2 or bx + bw - 1 >= w - 2
     left, top, right, bottom = _subpixel_box(phi, sel)
     box = BBox(left + x0, top + y0, right - left, bottom - top)
-    ring = cv2.dilate(sel_u8, np.ones((7, 7), np.uint8)).astype(bool) & ~sel
-    roi_f = roi.astype(np.float32)
-    contrast = float(roi_f[sel].mean() - roi_f[ring].mean()) if ring.any() else 0.0
+    contrast = _ring_contrast(roi, sel_u8)
     cs, _ = cv2.findContours(sel_u8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     contour = tuple(c.reshape(-1, 2).astype(np.float64) + (x0 + 0.5, y0 + 0.5) for c in cs if len(c) >= 3)
     reason = "ok"
@@ -313,3 +350,4 @@ def warm_up() -> None:
     phi = np.full((6, 6), 2.0, np.float32)
     phi[2:4, 2:4] = -2.0
     _subpixel_box(phi, phi < 0)
+    _ring_contrast(np.zeros((6, 6), np.uint8), (phi < 0).astype(np.uint8))

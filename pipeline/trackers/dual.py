@@ -53,6 +53,7 @@ import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from statistics import median
 
 import numpy as np
 
@@ -394,18 +395,17 @@ def backprojection_peak(bins: np.ndarray, q: np.ndarray, size: tuple[float, floa
 
 
 def _reference_size(t: DualTarget) -> tuple[float, float]:
-    """(w, h) of the target in its recent clean frames (median), or its current size."""
+    """(w, h) of the target in its recent clean frames (median), or its current size. (``statistics.median``
+    on these 16 numbers gives np.median's value at a tenth of the cost.)"""
     if len(t.history) >= 3:
-        h = np.asarray(t.history, float)
-        return float(np.median(h[:, 3])), float(np.median(h[:, 4]))
+        return median(r[3] for r in t.history), median(r[4] for r in t.history)
     return t.size
 
 
 def reference_area(t: DualTarget) -> float:
     """Box area of the target in its recent clean frames (median), or of its current size."""
     if len(t.history) >= 3:
-        h = np.asarray(t.history, float)
-        return float(np.median(h[:, 3] * h[:, 4]))
+        return median(r[3] * r[4] for r in t.history)
     return t.size[0] * t.size[1]
 
 

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from pipeline.stages.contour import ContourConfig, _subpixel_box, extract_contour
+from pipeline.stages.contour import ContourConfig, _ring_contrast, _subpixel_box, extract_contour
 from pipeline.stages.levelset import LevelSetConfig
 from pipeline.types import BBox
 
@@ -43,6 +43,22 @@ def test_subpixel_edges_at_the_interpolated_zero_crossings():
     edge = np.ones((6, 6), np.float32)
     edge[:, :3] = -1  # the mask touches the array's left edge: half a pixel beyond the last centre
     assert _subpixel_box(edge, edge < 0)[0] == 0.0
+
+
+def test_ring_contrast_equals_the_numpy_route():
+    rng = np.random.default_rng(5)
+    for k in range(300):
+        h, w = rng.integers(2, 70, 2)
+        roi = rng.integers(0, 256, (h, w), dtype=np.uint8)
+        sel = (cv2.GaussianBlur(rng.normal(0, 1, (h, w)), (0, 0), 2.0) > 0.2 * (k % 3)).astype(np.uint8)
+        if not sel.any():
+            continue
+        ring = cv2.dilate(sel, np.ones((7, 7), np.uint8)).astype(bool) & ~sel.astype(bool)
+        roi_f = roi.astype(np.float32)
+        ref = float(roi_f[sel.astype(bool)].mean() - roi_f[ring].mean()) if ring.any() else 0.0
+        assert _ring_contrast(roi, sel) == ref
+    whole = np.ones((5, 5), np.uint8)  # no ring: nothing to compare with
+    assert _ring_contrast(np.full((5, 5), 9, np.uint8), whole) == 0.0
 
 
 def test_warm_start_tracks_the_displacement():
