@@ -294,6 +294,24 @@ def bhattacharyya_distance(rho: float) -> float:
     return float(np.sqrt(max(1.0 - rho, 0.0)))
 
 
+def bright_fraction(bgr: NDArray[np.uint8], min_value: float) -> float:
+    """Share of the pixels of a BGR patch whose HSV value, max(B, G, R), is at least ``min_value``
+    (0 for an empty patch). One compiled pass: numpy's ``max(axis=2)`` took 100+ us on a target."""
+    if bgr.size == 0:
+        return 0.0
+    return _count_bright(bgr, float(min_value)) / (bgr.shape[0] * bgr.shape[1])
+
+
+@numba.njit(cache=True, boundscheck=False)
+def _count_bright(bgr, min_value):  # pragma: no cover (compiled)
+    n = 0
+    for i in range(bgr.shape[0]):
+        for j in range(bgr.shape[1]):
+            if max(bgr[i, j, 0], bgr[i, j, 1], bgr[i, j, 2]) >= min_value:
+                n += 1
+    return n
+
+
 def appearance_bins(image: np.ndarray, cfg: HistogramConfig) -> tuple[NDArray[np.int32], int]:
     """Bin-index image and bin count for a visible (HSV) or infrared (intensity) image."""
     if image.ndim == 3:
@@ -326,4 +344,7 @@ def warm_up() -> None:
         ellipse_shift(bins, np.ones(2), 2.0, 2.0, 1.5, 1.5)
     ellipse_histogram(np.zeros((4, 4), np.uint8), 2.0, 2.0, 1.5, 1.5, 2, np.ones((4, 4), bool))  # CamShift's test
     hsv_bin_image(np.zeros((2, 2, 3), np.uint8), HistogramConfig())
+    image = np.zeros((4, 4, 3), np.uint8)
+    bright_fraction(image, 30.0)
+    bright_fraction(image[1:3, 1:3], 30.0)  # frame crops are not contiguous
 

@@ -62,7 +62,8 @@ from pipeline.stages import kalman
 from pipeline.stages.contour import ContourResult, LevelSetMemory, extract_contour
 from pipeline.stages.merge import (associate, association_cost, choose_foreground_stable, eq11, inside_blob, kmeans_shares,
                                    lookalike_sets, merge_groups)
-from pipeline.stages.histogram import appearance_bins, bhattacharyya, ellipse_model, kernel_histogram, search_roi
+from pipeline.stages.histogram import (appearance_bins, bhattacharyya, bright_fraction, ellipse_model, kernel_histogram,
+                                       search_roi)
 from pipeline.stages.meanshift import mean_shift
 from pipeline.stages.model_update import UpdateDecision, selective_update, should_update_model
 from pipeline.stages.motion import coast_start, hold_rates, stop
@@ -375,9 +376,7 @@ def colour_informative(image: np.ndarray, box: BBox, cfg: DualConfig) -> tuple[b
         return True, 1.0
     h, w = image.shape[:2]
     x0, y0, x1, y1 = search_roi(box, 0.0, w, h)
-    patch = image[y0:y1, x0:x1]
-    value = patch.max(axis=2)  # HSV value = max(B, G, R)
-    frac = float(np.count_nonzero(value >= cfg.colour_min_value)) / max(value.size, 1)
+    frac = bright_fraction(image[y0:y1, x0:x1], cfg.colour_min_value)
     return frac >= cfg.colour_min_fraction, frac
 
 

@@ -9,6 +9,7 @@ from pipeline.stages.histogram import (
     _luts,
     bhattacharyya,
     bhattacharyya_distance,
+    bright_fraction,
     hsv_bin_image,
     intensity_bin_image,
     kernel_histogram,
@@ -43,6 +44,16 @@ def test_compiled_bin_sum_equals_the_opencv_route(cfg):
     ref = cv2.add(cv2.add(cv2.LUT(ch[0], lh), cv2.LUT(ch[1], ls)), cv2.LUT(ch[2], lv))
     np.testing.assert_array_equal(hsv_bin_image(bgr, cfg), ref)
     np.testing.assert_array_equal(hsv_bin_image(bgr[:, 5:40], cfg), ref[:, 5:40])  # a non-contiguous crop
+
+
+def test_bright_fraction_counts_the_hsv_value():
+    rng = np.random.default_rng(4)
+    frame = rng.integers(0, 256, (60, 80, 3), dtype=np.uint8)
+    for y0, y1, x0, x1, v in ((0, 60, 0, 80, 40), (5, 17, 30, 41, 200), (3, 4, 3, 4, 0), (10, 30, 10, 30, 256)):
+        patch = frame[y0:y1, x0:x1]
+        assert bright_fraction(patch, v) == np.count_nonzero(patch.max(axis=2) >= v) / patch[..., 0].size
+    assert bright_fraction(np.array([[[10, 50, 5], [39, 39, 39]]], np.uint8), 40) == 0.5
+    assert bright_fraction(frame[:0], 40) == 0.0
 
 
 def test_intensity_bins_exact():
