@@ -14,7 +14,8 @@ with ``q`` = ``position_noise`` for x, y and ``size_noise`` for w, h; ``z = H s 
 and ``R = diag(sigma_p^2, sigma_p^2, sigma_s^2, sigma_s^2)``.
 
 The algebra is filterpy's (``filterpy.kalman.predict`` / ``update``, Joseph-form
-posterior): a maintained implementation with exactly this procedural ``(x, P)`` API.
+posterior), written out here operation for operation so that the per-frame path skips its
+argument handling and the innovation is not computed twice (tests compare the two bit for bit).
 ``cv2.KalmanFilter`` was the other candidate; it is a mutable object (our states are
 frozen values), hides the innovation covariance S (only in its undocumented ``temp3``)
 and needs float32 matrices of exact shape. State vectors are 1-D in this API.
@@ -26,8 +27,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from filterpy.kalman import predict as _fp_predict
-from filterpy.kalman import update as _fp_update
 
 from pipeline.types import BBox
 
@@ -189,8 +188,13 @@ def init_state(box: BBox, cfg: KalmanConfig) -> GaussianState:
 
 
 def predict(state: GaussianState, F: np.ndarray, Q: np.ndarray, fading: float = 1.0) -> GaussianState:
-    """Prior of the next step: ``x = F x``, ``P = fading * F P F^T + Q`` (fading 1 = plain Kalman)."""
-    x, P = _fp_predict(state.x.reshape(-1, 1), state.P, F, Q, alpha=np.sqrt(fading))
+    """Prior of the next step: ``x = F x``, ``P = fading * F P F^T + Q`` (fading 1 = plain Kalman).
+
+    filterpy's ``predict`` operation for operation (``alpha = sqrt(fading)``, column state), without
+    its argument handling; equal to it bit for bit (tested)."""
+    alpha = np.sqrt(fading)
+    x = np.dot(F, state.x.reshape(-1, 1)) + np.dot(0, 0)
+    P = (alpha * alpha) * np.dot(np.dot(F, state.P), F.T) + Q
     return GaussianState(x.ravel(), P)
 
 
@@ -202,10 +206,19 @@ def innovation(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray
 
 
 def update(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) -> KalmanUpdate:
-    """Posterior after measuring ``z`` (4,), with the innovation and its covariance."""
-    y, S = innovation(prior, z, H, R)
-    x, P = _fp_update(prior.x.reshape(-1, 1), prior.P, np.asarray(z, float).reshape(-1, 1), R, H)
-    return KalmanUpdate(GaussianState(x.ravel(), P), y, S)
+    """Posterior after measuring ``z`` (4,), with the innovation and its covariance.
+
+    filterpy's ``update`` (Joseph form) operation for operation on column vectors, without its
+    argument handling, and with the innovation and S it computes; equal to it bit for bit (tested)."""
+    x0 = prior.x.reshape(-1, 1)
+    P0 = prior.P
+    y = np.asarray(z, float).reshape(-1, 1) - np.atleast_1d(np.dot(H, x0))
+    S = np.dot(np.dot(H, P0), H.T) + R
+    K = np.dot(np.dot(P0, H.T), np.linalg.inv(S))
+    x = x0 + np.dot(K, y)
+    I_KH = np.eye(K.shape[0]) - np.dot(K, H)
+    P = np.dot(np.dot(I_KH, P0), I_KH.T) + np.dot(np.dot(K, R), K.T)
+    return KalmanUpdate(GaussianState(x.ravel(), P), y.ravel(), S)
 
 
 def maneuver_factor(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, sigma: float) -> float:

@@ -55,6 +55,29 @@ def test_predict_and_update_closed_form():
     assert kalman.log_likelihood(y, S) == pytest.approx(multivariate_normal(np.zeros(4), S).logpdf(y))
 
 
+@pytest.mark.parametrize("model", ["constant_acceleration", "constant_velocity"])
+def test_predict_and_update_equal_filterpy_bit_for_bit(model):
+    from filterpy.kalman import predict as fp_predict
+    from filterpy.kalman import update as fp_update
+
+    cfg = kalman.KalmanConfig(model=model)
+    F, Q = kalman.motion_model(cfg)
+    H, R = kalman.measurement_model(cfg)
+    rng = np.random.default_rng(7)
+    for fading in (1.0, 1.3):
+        for _ in range(50):
+            A = rng.normal(0, 3, (cfg.dim, cfg.dim))
+            st = kalman.GaussianState(rng.normal(0, 50, cfg.dim), A @ A.T + np.eye(cfg.dim))
+            x, P = fp_predict(st.x.reshape(-1, 1), st.P, F, Q, alpha=np.sqrt(fading))
+            prior = kalman.predict(st, F, Q, fading)
+            assert np.array_equal(prior.x, x.ravel()) and np.array_equal(prior.P, P)
+            z = rng.normal(0, 50, 4)
+            x, P = fp_update(prior.x.reshape(-1, 1), prior.P, z.reshape(-1, 1), R, H)
+            up = kalman.update(prior, z, H, R)
+            assert np.array_equal(up.state.x, x.ravel()) and np.array_equal(up.state.P, P)
+            assert np.array_equal(up.S, H @ prior.P @ H.T + R)
+
+
 def test_fading_memory_scales_the_propagated_covariance():
     cfg = kalman.KalmanConfig()
     F, Q = kalman.motion_model(cfg)
