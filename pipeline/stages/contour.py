@@ -28,8 +28,8 @@ import cv2
 import numba
 import numpy as np
 
+from pipeline.stages import levelset
 from pipeline.stages.levelset import LevelSetConfig, box_step, edge_map, evolve
-from pipeline.stages.levelset import warm_up as _warm_up_levelset  # noqa: I001
 from pipeline.types import BBox, Points
 
 
@@ -192,13 +192,9 @@ def _reach(phi, mask, fixed, lo, hi, step, along_rows):  # pragma: no cover (com
 
 def _ring_contrast(roi: np.ndarray, sel_u8: np.ndarray) -> float:
     """Mean IR of the selection minus the mean of the ring around it (its 7x7 dilation minus itself),
-    0 without a ring; the float32 means of numpy, in one compiled pass (unless the sums could
-    exceed float32's exact integers, where numpy's own route runs)."""
-    if int(sel_u8.size) * 255 >= 1 << 24:
-        sel = sel_u8.astype(bool)
-        ring = cv2.dilate(sel_u8, np.ones((7, 7), np.uint8)).astype(bool) & ~sel
-        roi_f = roi.astype(np.float32)
-        return float(roi_f[sel].mean() - roi_f[ring].mean()) if ring.any() else 0.0
+    0 without a ring, in one compiled pass. The sums are exact integers, each mean a float32 quotient:
+    numpy's float32 means of the same pixels wherever their sums stay below 2**24 (tested), i.e. any
+    region under 65 000 px; above that these are the more exact ones."""
     return _ring_contrast_kernel(np.ascontiguousarray(roi), sel_u8)
 
 
@@ -358,7 +354,7 @@ def extract_contour(
 def warm_up() -> None:
     """Compile or load the contour stage's numba kernels (the level set's and :func:`_reach`) once per
     process, so that a tracker's first timed frame does not pay for it."""
-    _warm_up_levelset()
+    levelset.warm_up()
     phi = np.full((6, 6), 2.0, np.float32)
     phi[2:4, 2:4] = -2.0
     _subpixel_box(phi, phi < 0)

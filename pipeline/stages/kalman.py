@@ -193,7 +193,7 @@ def predict(state: GaussianState, F: np.ndarray, Q: np.ndarray, fading: float = 
     filterpy's ``predict`` operation for operation (``alpha = sqrt(fading)``, column state), without
     its argument handling; equal to it bit for bit (tested)."""
     alpha = np.sqrt(fading)
-    x = np.dot(F, state.x.reshape(-1, 1)) + np.dot(0, 0)
+    x = np.dot(F, state.x.reshape(-1, 1)) + 0.0  # filterpy adds dot(B, u) = 0 (turning -0.0 into 0.0)
     P = (alpha * alpha) * np.dot(np.dot(F, state.P), F.T) + Q
     return GaussianState(x.ravel(), P)
 
@@ -210,15 +210,13 @@ def update(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) ->
 
     filterpy's ``update`` (Joseph form) operation for operation on column vectors, without its
     argument handling, and with the innovation and S it computes; equal to it bit for bit (tested)."""
-    x0 = prior.x.reshape(-1, 1)
+    y, S = innovation(prior, z, H, R)
     P0 = prior.P
-    y = np.asarray(z, float).reshape(-1, 1) - np.atleast_1d(np.dot(H, x0))
-    S = np.dot(np.dot(H, P0), H.T) + R
     K = np.dot(np.dot(P0, H.T), np.linalg.inv(S))
-    x = x0 + np.dot(K, y)
+    x = prior.x.reshape(-1, 1) + np.dot(K, y.reshape(-1, 1))
     I_KH = np.eye(K.shape[0]) - np.dot(K, H)
     P = np.dot(np.dot(I_KH, P0), I_KH.T) + np.dot(np.dot(K, R), K.T)
-    return KalmanUpdate(GaussianState(x.ravel(), P), y.ravel(), S)
+    return KalmanUpdate(GaussianState(x.ravel(), P), y, S)
 
 
 def maneuver_factor(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, sigma: float) -> float:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from pipeline.errors import InputError
+from pipeline.stages import contour, histogram
 from pipeline.trackers import detect as _detect
 from pipeline.trackers import dual as _dual
 from pipeline.trackers import kalman_camshift as _kc
@@ -13,18 +14,22 @@ from pipeline.trackers.base import Engine, FunctionalEngine
 from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
 
 
+def _engine(name: str, init: Callable, step: Callable, *warm_ups: Callable[[], None]) -> Callable[[object], Engine]:
+    """Factory of a functional engine that first compiles or loads its numba kernels (``warm_ups``, once
+    per process), so that the tracker's first timed frame does not pay for them."""
 
-def _dual_engine(cfg: object) -> Engine:
-    from pipeline.stages.contour import warm_up
+    def make(cfg: object) -> Engine:
+        for warm_up in warm_ups:
+            warm_up()
+        return FunctionalEngine(name, init, step, cfg)
 
-    warm_up()  # the numba kernels are compiled or loaded here, not inside the timed first frame
-    return FunctionalEngine("dual", _dual.init, _dual.step, cfg)
+    return make
 
 
 _FACTORIES: dict[str, Callable[[object], Engine]] = {
-    "dual": _dual_engine,
-    "meanshift": lambda cfg: FunctionalEngine("meanshift", _meanshift.init, _meanshift.step, cfg),
-    "kalman-camshift": lambda cfg: FunctionalEngine("kalman-camshift", _kc.init, _kc.step, cfg),
+    "dual": _engine("dual", _dual.init, _dual.step, histogram.warm_up, contour.warm_up),
+    "meanshift": _engine("meanshift", _meanshift.init, _meanshift.step, histogram.warm_up),
+    "kalman-camshift": _engine("kalman-camshift", _kc.init, _kc.step, histogram.warm_up),
     "detect": lambda cfg: FunctionalEngine("detect", _detect.init, _detect.step, cfg),
     "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),  # type: ignore[attr-defined]
     "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),  # type: ignore[attr-defined]
@@ -55,10 +60,6 @@ def make_tracker(name: str, cfg: object) -> Engine:
     factory = _FACTORIES.get(name)
     if factory is None:
         raise InputError(f"unknown tracker {name!r}; available: {', '.join(_FACTORIES)}")
-    if name in ("dual", "meanshift", "kalman-camshift"):
-        from pipeline.stages.histogram import warm_up
-
-        warm_up()  # the compiled histogram loops are loaded here, not inside the timed first frame
     return factory(cfg)
 
 

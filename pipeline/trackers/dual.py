@@ -346,8 +346,6 @@ def step(state, frames: FramePair, cfg: object):
             ev.append(Event(EventKind.SPLIT, f"T{i} separated (merge test no longer holds)", (i,)))
             start = cs.box_prior.center
         done[i] = finish_single(frames, cs, cfg, state.mode, timing, start=start, events_in=ev)
-        if start is not None:
-            done[i] = (dataclasses.replace(done[i][0], split_frame=frames.index), *done[i][1:])
     new, results, events = [], [], []
     for t in state.targets:
         nt, r, ev = done[t.id]
@@ -531,7 +529,7 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
                   start: tuple[float, float] | None = None, events_in: list[Event] | None = None):
     """Steps 3-5 for one target: contour, measurement decision, scale, model and motion updates.
 
-    ``start`` forces where the contour starts (cold), as after a split."""
+    ``start`` forces where the contour starts (cold) after a split, which starts the re-merge hold."""
     dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
     kcfg = cfg.kalman  # type: ignore[attr-defined]
     ir = frames.infrared
@@ -662,7 +660,8 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
     nt = dataclasses.replace(t, box=out, size=size, q=q, status=status, kf=kf,
                              memory=c.memory if good else t.memory,
                              memory_center=c.box.center if good and c.box is not None else t.memory_center,
-                             history=history, missing=missing_n, last_update=str(decision))
+                             history=history, missing=missing_n, last_update=str(decision),
+                             split_frame=frames.index if start is not None else t.split_frame)
     res = TargetResult(t.id, out, status, source, {"meanshift": ms_iters, "levelset": c.iterations},
                        rho2 if not np.isnan(rho2) else rho1, f"{decision}" + ("" if c.ok else f";contour-{c.reason}"),
                        conf, c.contour if c.box is not None else (), diag,
@@ -721,9 +720,8 @@ def finish_group(frames: FramePair, css: list[ColourStep], cfg: object, mode: st
             ev = [Event(EventKind.SPLIT, f"T{cs.t.id} split from {'+'.join(f'T{k}' for k in ids)}; re-associated: {text}",
                         (cs.t.id,))] if i == pairs[0][0] else []
             t = dataclasses.replace(cs.t, memory=None, status=TargetStatus.OCCLUDED_PARTIAL)
-            nt, res, evs = finish_single(frames, dataclasses.replace(cs, t=t), cfg, mode, timing,
+            out[cs.t.id] = finish_single(frames, dataclasses.replace(cs, t=t), cfg, mode, timing,
                                          start=blobs[j].center, events_in=ev)
-            out[cs.t.id] = (dataclasses.replace(nt, split_frame=frames.index), res, evs)
         return out, None
 
     # still merged; a group contour without contrast (leaked into the background) places nobody
