@@ -315,6 +315,13 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
     most one pixel per iteration, so each iteration scans only the previous band's
     bounding box grown by two pixels, with dense branch-light loops (faster here than
     visiting index lists of band pixels: 44 vs 71 us per iteration on a 48x82 region).
+    ``near`` is recomputed only where it can have changed: on the previous iteration's
+    2-pixel dilation and on the two outer rows and columns (the Neumann copy writes the
+    outer ones); elsewhere in the box neither phi nor a neighbour moved, so it stays 0.
+
+    Every array is indexed flat with unsigned offsets: numba checks each signed index for
+    a negative value to wrap around, which kept the loops scalar and cost about a third
+    of the kernel's time (same results bit for bit, tested on 1970 recorded calls).
 
     With ``check_every > 0`` the stopping rule runs inside: every ``check_every``
     iterations the inside area is stored in ``areas`` and the loop ends once it differs
@@ -322,16 +329,23 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
     is 0. Returns (iterations run, checks stored).
     """
     H, W = phi.shape
-    near = np.zeros((H, W), np.uint8)
-    t2 = np.zeros((H, W), np.uint8)
-    t1 = np.zeros((H, W), np.uint8)
-    a2 = np.zeros((H, W), np.uint8)
-    a1 = np.zeros((H, W), np.uint8)
-    nx = np.zeros((H, W), np.float32)
-    ny = np.zeros((H, W), np.float32)
-    qx = np.zeros((H, W), np.float32)
-    qy = np.zeros((H, W), np.float32)
-    new = np.zeros((H, W), np.float32)
+    u0, u1, u2 = np.uint64(0), np.uint64(1), np.uint64(2)
+    uW = np.uint64(W)
+    uWm1 = uW - u1
+    pf = phi.reshape(H * W)  # a view (phi is C-contiguous); numba refuses otherwise
+    gf = g.ravel()
+    gxf = gx.ravel()
+    gyf = gy.ravel()
+    near = np.zeros(H * W, np.uint8)
+    t2 = np.zeros(H * W, np.uint8)
+    t1 = np.zeros(H * W, np.uint8)
+    a2 = np.zeros(H * W, np.uint8)
+    a1 = np.zeros(H * W, np.uint8)
+    nx = np.zeros(H * W, np.float32)
+    ny = np.zeros(H * W, np.float32)
+    qx = np.zeros(H * W, np.float32)
+    qy = np.zeros(H * W, np.float32)
+    new = np.zeros(H * W, np.float32)
     half = np.float32(0.5)
     tiny = np.float32(1e-10)
     lut_n = dps_lut.shape[0] - 1
@@ -342,10 +356,9 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
     for it in range(n_iter):
         if check_every > 0 and it > 0 and it % check_every == 0:
             area = 0
-            for i in range(H):
-                for j in range(W):
-                    if phi[i, j] < 0:
-                        area += 1
+            for k in range(H * W):
+                if pf[k] < 0:
+                    area += 1
             areas[n_checks] = area
             n_checks += 1
             if area == 0:
@@ -354,102 +367,117 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                 break
         done = it + 1
         _mirror_border(phi)
-        # near over the scan box, and its bounding box
+        # near over the scan box (recomputed only where it can have changed), and its bounding box
         b0, b1, d0, d1 = H, -1, W, -1
         for i in range(r0, r1 + 1):
-            for j in range(c0, c1 + 1):
-                p = phi[i, j]
+            ring_row = it == 0 or i < 2 or i > H - 3
+            base = np.uint64(i) * uW
+            for j in range(np.uint64(c0), np.uint64(c1 + 1)):
+                k = base + j
+                if not (ring_row or a2[k] or j < u2 or j > uW - np.uint64(3)):
+                    near[k] = 0
+                    continue
+                p = pf[k]
                 v = abs(p) < band
-                if not v and j + 1 < W:
-                    v = p * phi[i, j + 1] <= 0
-                if not v and j > 0:
-                    v = p * phi[i, j - 1] <= 0
+                if not v and j + u1 < uW:
+                    v = p * pf[k + u1] <= 0
+                if not v and j > u0:
+                    v = p * pf[k - u1] <= 0
                 if not v and i + 1 < H:
-                    v = p * phi[i + 1, j] <= 0
+                    v = p * pf[k + uW] <= 0
                 if not v and i > 0:
-                    v = p * phi[i - 1, j] <= 0
-                near[i, j] = v
+                    v = p * pf[k - uW] <= 0
+                near[k] = v
                 if v:
                     b0 = min(b0, i)
                     b1 = max(b1, i)
-                    d0 = min(d0, j)
-                    d1 = max(d1, j)
+                    d0 = min(d0, np.int64(j))
+                    d1 = max(d1, np.int64(j))
         if b1 < 0:
             break
         R0, R1, C0, C1 = max(b0 - 2, 0), min(b1 + 2, H - 1), max(d0 - 2, 0), min(d1 + 2, W - 1)
+        uC0, uC1 = np.uint64(C0), np.uint64(C1)
+        J0, J1 = np.uint64(max(C0, 2)), np.uint64(min(C1, W - 3))
         # separable dilations of near, radius 1 (update) and 2 (derivatives)
         for i in range(R0, R1 + 1):
-            for j in range(C0, C1 + 1):
-                m1 = near[i, j]
-                if j - 1 >= 0: m1 |= near[i, j - 1]
-                if j + 1 < W: m1 |= near[i, j + 1]
-                m2 = m1
-                if j - 2 >= 0: m2 |= near[i, j - 2]
-                if j + 2 < W: m2 |= near[i, j + 2]
-                t1[i, j] = m1
-                t2[i, j] = m2
+            base = np.uint64(i) * uW
+            for j in range(uC0, min(J0, uC1 + u1)):
+                k = base + j
+                m1 = near[k] | near[base + max(j, u1) - u1] | near[base + min(j + u1, uWm1)]
+                t1[k] = m1
+                t2[k] = m1 | near[base + max(j, u2) - u2] | near[base + min(j + u2, uWm1)]
+            for j in range(J0, J1 + u1):
+                k = base + j
+                m1 = near[k] | near[k - u1] | near[k + u1]
+                t1[k] = m1
+                t2[k] = m1 | near[k - u2] | near[k + u2]
+            for j in range(max(J1 + u1, uC0), uC1 + u1):
+                k = base + j
+                m1 = near[k] | near[base + max(j, u1) - u1] | near[base + min(j + u1, uWm1)]
+                t1[k] = m1
+                t2[k] = m1 | near[base + max(j, u2) - u2] | near[base + min(j + u2, uWm1)]
         for i in range(R0, R1 + 1):
-            for j in range(C0, C1 + 1):
-                m1 = t1[i, j]
-                if i - 1 >= R0: m1 |= t1[i - 1, j]
-                if i + 1 <= R1: m1 |= t1[i + 1, j]
-                m2 = t2[i, j]
-                if i - 1 >= R0: m2 |= t2[i - 1, j]
-                if i + 1 <= R1: m2 |= t2[i + 1, j]
-                if i - 2 >= R0: m2 |= t2[i - 2, j]
-                if i + 2 <= R1: m2 |= t2[i + 2, j]
-                a1[i, j] = m1
-                a2[i, j] = m2
+            b = np.uint64(i) * uW
+            bm1, bp1 = np.uint64(max(i - 1, R0)) * uW, np.uint64(min(i + 1, R1)) * uW
+            bm2, bp2 = np.uint64(max(i - 2, R0)) * uW, np.uint64(min(i + 2, R1)) * uW
+            for j in range(uC0, uC1 + u1):
+                a1[b + j] = t1[b + j] | t1[bm1 + j] | t1[bp1 + j]
+                a2[b + j] = t2[b + j] | t2[bm1 + j] | t2[bp1 + j] | t2[bm2 + j] | t2[bp2 + j]
         for i in range(R0, R1 + 1):
-            for j in range(C0, C1 + 1):
-                if not a2[i, j]:
+            base = np.uint64(i) * uW
+            for j in range(uC0, uC1 + u1):
+                k = base + j
+                if not a2[k]:
                     continue
-                if j == 0:
-                    dx = phi[i, 1] - phi[i, 0]
-                elif j == W - 1:
-                    dx = phi[i, W - 1] - phi[i, W - 2]
+                if j == u0:
+                    dx = pf[k + u1] - pf[k]
+                elif j == uWm1:
+                    dx = pf[k] - pf[k - u1]
                 else:
-                    dx = half * (phi[i, j + 1] - phi[i, j - 1])
+                    dx = half * (pf[k + u1] - pf[k - u1])
                 if i == 0:
-                    dy = phi[1, j] - phi[0, j]
+                    dy = pf[k + uW] - pf[k]
                 elif i == H - 1:
-                    dy = phi[H - 1, j] - phi[H - 2, j]
+                    dy = pf[k] - pf[k - uW]
                 else:
-                    dy = half * (phi[i + 1, j] - phi[i - 1, j])
+                    dy = half * (pf[k + uW] - pf[k - uW])
                 s = np.sqrt(dx * dx + dy * dy)
                 inv = np.float32(1.0) / (s + tiny)
-                nx[i, j] = dx * inv
-                ny[i, j] = dy * inv
+                nx[k] = dx * inv
+                ny[k] = dy * inv
                 if s < 1.0:
                     u = s * lut_n
                     kk = int(u)
                     dps = dps_lut[kk] + (u - kk) * (dps_lut[kk + 1] - dps_lut[kk])
                 else:
                     dps = np.float32(1.0) - np.float32(1.0) / s
-                qx[i, j] = (dps - 1) * dx
-                qy[i, j] = (dps - 1) * dy
+                qx[k] = (dps - 1) * dx
+                qy[k] = (dps - 1) * dy
+        uI0, uI1 = np.uint64(max(C0, 1)), np.uint64(min(C1, W - 2))
         for i in range(max(R0, 1), min(R1, H - 2) + 1):
-            for j in range(max(C0, 1), min(C1, W - 2) + 1):
-                if not a1[i, j]:
+            base = np.uint64(i) * uW
+            for j in range(uI0, uI1 + u1):
+                k = base + j
+                if not a1[k]:
                     continue
-                p = phi[i, j]
-                curv = half * (nx[i, j + 1] - nx[i, j - 1]) + half * (ny[i + 1, j] - ny[i - 1, j])
-                dist = half * (qx[i, j + 1] - qx[i, j - 1]) + half * (qy[i + 1, j] - qy[i - 1, j]) + (
-                    phi[i + 1, j] + phi[i - 1, j] + phi[i, j + 1] + phi[i, j - 1] - 4 * p)
+                p = pf[k]
+                curv = half * (nx[k + u1] - nx[k - u1]) + half * (ny[k + uW] - ny[k - uW])
+                dist = half * (qx[k + u1] - qx[k - u1]) + half * (qy[k + uW] - qy[k - uW]) + (
+                    pf[k + uW] + pf[k - uW] + pf[k + u1] + pf[k - u1] - 4 * p)
                 if abs(p) <= eps:
                     u = (p + eps) * de_scale
                     kk = min(int(u), lut_n - 1)
                     de = de_lut[kk] + (u - kk) * (de_lut[kk + 1] - de_lut[kk])
-                    edge = de * (gx[i, j] * nx[i, j] + gy[i, j] * ny[i, j] + g[i, j] * curv)
-                    new[i, j] = p + dt * (mu * dist + lam * edge + alpha * g[i, j] * de)
+                    edge = de * (gxf[k] * nx[k] + gyf[k] * ny[k] + gf[k] * curv)
+                    new[k] = p + dt * (mu * dist + lam * edge + alpha * gf[k] * de)
                 else:
-                    new[i, j] = p + dt * mu * dist
+                    new[k] = p + dt * mu * dist
         for i in range(max(R0, 1), min(R1, H - 2) + 1):
-            for j in range(max(C0, 1), min(C1, W - 2) + 1):
-                if a1[i, j]:
-                    phi[i, j] = new[i, j]
-                    a1[i, j] = 0
-                a2[i, j] = 0
+            base = np.uint64(i) * uW
+            for j in range(uI0, uI1 + u1):
+                k = base + j
+                if a1[k]:
+                    pf[k] = new[k]
         r0, r1, c0, c1 = R0, R1, C0, C1
     _mirror_border(phi)
     return done, n_checks
