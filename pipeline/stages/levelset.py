@@ -303,9 +303,17 @@ def _mirror_border(phi):  # pragma: no cover (compiled)
         phi[i, W - 1] = phi[i, W - 3]
 
 
+@numba.njit(cache=True, boundscheck=False)
+def _any_negative(a):  # pragma: no cover (compiled)
+    for k in range(a.size):
+        if a[k] < 0:
+            return True
+    return False
+
+
 @numba.njit(cache=True, boundscheck=False, fastmath=True)
 def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_lut, de_lut,
-                     check_every, stop_back, stop_tol, areas):  # pragma: no cover
+                     check_every, stop_back, stop_tol, areas, n_refine):  # pragma: no cover
     """``n_iter`` DRLSE iterations in place on ``phi`` (float32), updating only a narrow band.
 
     Same arithmetic as :func:`reference_step`. ``near``: |phi| < band or a sign change to
@@ -326,7 +334,12 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
     With ``check_every > 0`` the stopping rule runs inside: every ``check_every``
     iterations the inside area is stored in ``areas`` and the loop ends once it differs
     by at most ``max(1, stop_tol * area)`` from the value ``stop_back`` checks earlier, or
-    is 0. Returns (iterations run, checks stored).
+    is 0. Then, if anything is inside, ``n_refine`` more iterations with ``alpha = 0`` (the
+    refinement; in the same call, so the band carries over). Returns (iterations of the main
+    phase, checks stored, whether the refinement ran).
+
+    Work arrays are left uninitialised: every value is written before it is read (``near`` on
+    the whole array in the first iteration, the rest inside the box they are read in).
     """
     H, W = phi.shape
     u0, u1, u2 = np.uint64(0), np.uint64(1), np.uint64(2)
@@ -336,16 +349,16 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
     gf = g.ravel()
     gxf = gx.ravel()
     gyf = gy.ravel()
-    near = np.zeros(H * W, np.uint8)
-    t2 = np.zeros(H * W, np.uint8)
-    t1 = np.zeros(H * W, np.uint8)
-    a2 = np.zeros(H * W, np.uint8)
-    a1 = np.zeros(H * W, np.uint8)
-    nx = np.zeros(H * W, np.float32)
-    ny = np.zeros(H * W, np.float32)
-    qx = np.zeros(H * W, np.float32)
-    qy = np.zeros(H * W, np.float32)
-    new = np.zeros(H * W, np.float32)
+    near = np.empty(H * W, np.uint8)
+    t2 = np.empty(H * W, np.uint8)
+    t1 = np.empty(H * W, np.uint8)
+    a2 = np.empty(H * W, np.uint8)
+    a1 = np.empty(H * W, np.uint8)
+    nx = np.empty(H * W, np.float32)
+    ny = np.empty(H * W, np.float32)
+    qx = np.empty(H * W, np.float32)
+    qy = np.empty(H * W, np.float32)
+    new = np.empty(H * W, np.float32)
     half = np.float32(0.5)
     tiny = np.float32(1e-10)
     lut_n = dps_lut.shape[0] - 1
@@ -353,24 +366,40 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
     r0, r1, c0, c1 = 0, H - 1, 0, W - 1
     done = 0
     n_checks = 0
-    for it in range(n_iter):
-        if check_every > 0 and it > 0 and it % check_every == 0:
-            area = 0
-            for k in range(H * W):
-                if pf[k] < 0:
-                    area += 1
-            areas[n_checks] = area
-            n_checks += 1
-            if area == 0:
-                break
-            if n_checks > stop_back and abs(area - areas[n_checks - 1 - stop_back]) <= max(1.0, stop_tol * area):
-                break
-        done = it + 1
+    step = 0  # iterations run in this call, both phases
+    left = n_iter  # iterations left in the current phase
+    refining = False
+    a = alpha
+    while True:
+        if not refining:
+            stop = left == 0
+            if not stop and check_every > 0 and done > 0 and done % check_every == 0:
+                area = 0
+                for k in range(H * W):
+                    if pf[k] < 0:
+                        area += 1
+                areas[n_checks] = area
+                n_checks += 1
+                if area == 0:
+                    break
+                stop = n_checks > stop_back and abs(area - areas[n_checks - 1 - stop_back]) <= max(1.0, stop_tol * area)
+            if stop:  # the main phase is over: refine with alpha = 0 if anything is inside
+                _mirror_border(phi)
+                if n_refine == 0 or not _any_negative(pf):
+                    break
+                refining = True
+                left = n_refine
+                a = np.float32(0.0)
+        if left == 0:
+            break
+        left -= 1
+        if not refining:
+            done += 1
         _mirror_border(phi)
         # near over the scan box (recomputed only where it can have changed), and its bounding box
         b0, b1, d0, d1 = H, -1, W, -1
         for i in range(r0, r1 + 1):
-            ring_row = it == 0 or i < 2 or i > H - 3
+            ring_row = step == 0 or i < 2 or i > H - 3
             base = np.uint64(i) * uW
             for j in range(np.uint64(c0), np.uint64(c1 + 1)):
                 k = base + j
@@ -393,7 +422,10 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                     b1 = max(b1, i)
                     d0 = min(d0, np.int64(j))
                     d1 = max(d1, np.int64(j))
-        if b1 < 0:
+        if b1 < 0:  # nothing near a zero level: nothing moves any more, in either phase
+            if not refining:
+                _mirror_border(phi)
+                refining = n_refine > 0 and _any_negative(pf)
             break
         R0, R1, C0, C1 = max(b0 - 2, 0), min(b1 + 2, H - 1), max(d0 - 2, 0), min(d1 + 2, W - 1)
         uC0, uC1 = np.uint64(C0), np.uint64(C1)
@@ -469,7 +501,7 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                     kk = min(int(u), lut_n - 1)
                     de = de_lut[kk] + (u - kk) * (de_lut[kk + 1] - de_lut[kk])
                     edge = de * (gxf[k] * nx[k] + gyf[k] * ny[k] + gf[k] * curv)
-                    new[k] = p + dt * (mu * dist + lam * edge + alpha * gf[k] * de)
+                    new[k] = p + dt * (mu * dist + lam * edge + a * gf[k] * de)
                 else:
                     new[k] = p + dt * mu * dist
         for i in range(max(R0, 1), min(R1, H - 2) + 1):
@@ -479,8 +511,9 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                 if a1[k]:
                     pf[k] = new[k]
         r0, r1, c0, c1 = R0, R1, C0, C1
+        step += 1
     _mirror_border(phi)
-    return done, n_checks
+    return done, n_checks, refining
 
 
 @dataclass(frozen=True)
@@ -534,16 +567,14 @@ def evolve(
     eps, dt, band = np.float32(cfg.dirac_width), np.float32(cfg.timestep), np.float32(cfg.band_px)
     areas = np.zeros(cap // cfg.check_every + 2, np.int64)
     alpha = np.float32(cfg.area_weight_warm if warm else cfg.area_weight)
-    it, n_checks = _band_iterations(phi, em.g, em.gx, em.gy, cap, mu, lam, alpha, eps, dt, band,
-                                    dps_lut, de_lut, cfg.check_every, cfg.stop_window // cfg.check_every,
-                                    cfg.stop_tolerance, areas)
+    it, n_checks, refined = _band_iterations(phi, em.g, em.gx, em.gy, cap, mu, lam, alpha, eps, dt, band,
+                                             dps_lut, de_lut, cfg.check_every, cfg.stop_window // cfg.check_every,
+                                             cfg.stop_tolerance, areas, cfg.refine_iterations)
     converged = it < cap and n_checks > 0 and areas[n_checks - 1] > 0
     if iter_callback is not None:
         for k in range(n_checks):
             iter_callback(EvolveIter((k + 1) * cfg.check_every, int(areas[k])))
-    if cfg.refine_iterations and np.any(phi < 0):
-        _band_iterations(phi, em.g, em.gx, em.gy, cfg.refine_iterations, mu, lam, np.float32(0.0), eps, dt, band,
-                         dps_lut, de_lut, 0, 0, 0.0, areas)
+    if refined:
         it += cfg.refine_iterations
     return LevelSetResult(phi, it, converged)
 

@@ -63,7 +63,7 @@ def test_fast_kernel_equals_reference_step():
     dps, de = L._luts(cfg.dirac_width)
     L._band_iterations(fast, em.g, em.gx, em.gy, 1, np.float32(cfg.distance_weight), np.float32(cfg.length_weight),
                        np.float32(cfg.area_weight), np.float32(cfg.dirac_width), np.float32(cfg.timestep),
-                       np.float32(cfg.band_px), dps, de, 0, 0, 0.0, np.zeros(4, np.int64))
+                       np.float32(cfg.band_px), dps, de, 0, 0, 0.0, np.zeros(4, np.int64), 0)
     np.testing.assert_allclose(fast[1:-1, 1:-1], ref[1:-1, 1:-1], atol=1e-5)
 
 
@@ -98,7 +98,8 @@ def test_band_kernel_follows_a_moving_front_like_the_dense_band_scheme():
         phi = phi0.copy()
         L._band_iterations(phi, em.g, em.gx, em.gy, n, np.float32(cfg.distance_weight),
                            np.float32(cfg.length_weight), np.float32(cfg.area_weight), np.float32(cfg.dirac_width),
-                           np.float32(cfg.timestep), np.float32(cfg.band_px), dps, de, 0, 0, 0.0, np.zeros(4, np.int64))
+                           np.float32(cfg.timestep), np.float32(cfg.band_px), dps, de, 0, 0, 0.0,
+                           np.zeros(4, np.int64), 0)
         return phi
 
     np.testing.assert_allclose(kernel(8), _narrow_band_oracle(phi0, em, cfg, 8), atol=1e-3)
@@ -107,6 +108,32 @@ def test_band_kernel_follows_a_moving_front_like_the_dense_band_scheme():
     got, want = kernel(80) < 0, _narrow_band_oracle(phi0, em, cfg, 80) < 0
     assert ((phi0 < 0) != want).sum() > 3000
     assert (got != want).sum() <= 100
+
+
+def test_refinement_in_the_same_call_equals_a_second_call_with_alpha_zero():
+    img, _ = _blob()
+    cfg = L.LevelSetConfig()
+    em = L.edge_map(img, cfg)
+    phi0 = L.box_step(img.shape, (21, 12, 38, 76), cfg.step_height)
+    dps, de = L._luts(cfg.dirac_width)
+    f32 = np.float32
+    common = (f32(cfg.distance_weight), f32(cfg.length_weight))
+    rest = (f32(cfg.dirac_width), f32(cfg.timestep), f32(cfg.band_px), dps, de)
+    one = phi0.copy()
+    got = L._band_iterations(one, em.g, em.gx, em.gy, 40, *common, f32(cfg.area_weight), *rest, 5, 2, 0.002,
+                             np.zeros(10, np.int64), 7)
+    two = phi0.copy()
+    first = L._band_iterations(two, em.g, em.gx, em.gy, 40, *common, f32(cfg.area_weight), *rest, 5, 2, 0.002,
+                               np.zeros(10, np.int64), 0)
+    assert first[2] is False and got[:2] == first[:2] and got[2] is True
+    before = two.copy()
+    L._band_iterations(two, em.g, em.gx, em.gy, 7, *common, f32(0.0), *rest, 0, 0, 0.0, np.zeros(4, np.int64), 0)
+    assert not np.array_equal(before, two)  # the refinement moved something
+    np.testing.assert_array_equal(one, two)
+    # nothing inside: no refinement
+    empty = np.full(img.shape, f32(2.0))
+    assert L._band_iterations(empty, em.g, em.gx, em.gy, 10, *common, f32(cfg.area_weight), *rest, 5, 2, 0.002,
+                              np.zeros(10, np.int64), 7)[2] is False
 
 
 def test_fast_and_reference_segment_alike():
