@@ -90,6 +90,7 @@ def run_bench(
                     continue
                 fps_trk: list[float] = []
                 fps_e2e: list[float] = []
+                fastest: dict[str, object] | None = None  # the summary of the run with the best fps_tracking
                 for _ in range(repeat):
                     res = run_track(sd, RunOptions(
                         tracker=name, out_dir=out / name / seq_name, force=True, plots=False, progress=None,
@@ -98,6 +99,8 @@ def run_bench(
                     s = res.summary
                     fps_trk += [float(s["fps_tracking"])] if s.get("fps_tracking") else []
                     fps_e2e += [float(s["fps_end_to_end"])] if s.get("fps_end_to_end") else []
+                    if fastest is None or float(s.get("fps_tracking") or 0) > float(fastest.get("fps_tracking") or 0):
+                        fastest = s
                 m = s.get("metrics") or {}
                 row.update({
                     "p20": m.get("p20") if isinstance(m, dict) else None,
@@ -106,11 +109,11 @@ def run_bench(
                     "fps_tracking": max(fps_trk) if fps_trk else None,
                     "fps_end_to_end": max(fps_e2e) if fps_e2e else None,
                     "fps_tracking_runs": fps_trk,
-                    "stage_seconds": s.get("stage_seconds"),
+                    "stage_seconds": (fastest or s).get("stage_seconds"),
                     "complete": s.get("complete"),
                 })
-                fe = s.get("fps_end_to_end")
-                row["end_to_end_vs_decode"] = round(float(fe) / dec_fps, 3) if fe and dec_fps else None
+                fe = row["fps_end_to_end"]  # the kept (fastest) end-to-end rate, as printed beside it
+                row["end_to_end_vs_decode"] = round(float(fe) / dec_fps, 3) if fe and dec_fps else None  # type: ignore[arg-type]
                 rows.append(row)
         _add_peer_ratios(rows)
         if json_path is not None:

@@ -30,6 +30,26 @@ def test_bench_repeat_keeps_the_fastest_run(scene, tmp_path, capsys):
     assert "--repeat must be an integer >= 1" in err and err.count("\n") == 1
 
 
+def test_bench_repeat_reports_the_kept_runs_ratio_and_stages(scene, monkeypatch):
+    import types
+
+    import pipeline.bench as B
+
+    runs = iter([(100.0, 50.0, 0.3), (300.0, 120.0, 0.1), (200.0, 150.0, 0.2)])  # fps, e2e, stage seconds
+
+    def fake_run(seq, opts):
+        fps, e2e, sec = next(runs)
+        return types.SimpleNamespace(summary={"fps_tracking": fps, "fps_end_to_end": e2e, "complete": True,
+                                              "metrics": {"p20": 1.0, "auc": 0.8}, "stage_seconds": {"x": sec}})
+
+    monkeypatch.setattr(B, "run_track", fake_run)
+    monkeypatch.setattr(B, "decode_rate", lambda *a, **k: (600.0, 32))
+    r = B.run_bench([scene("pole-fast")], ["meanshift"], repeat=3)[0]
+    assert r["fps_tracking"] == 300.0 and r["fps_end_to_end"] == 150.0  # each rate its best run
+    assert r["end_to_end_vs_decode"] == 0.25  # of the printed end-to-end rate, not the last run's
+    assert r["stage_seconds"] == {"x": 0.1}  # the stages of the fastest tracking run
+
+
 def test_fps_vs_targets_table(tmp_path):
     from pipeline.bench import format_scaling, run_scaling
 
