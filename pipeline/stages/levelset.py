@@ -164,21 +164,35 @@ def _central_diff(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _central_diff_fast(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(d/dx, d/dy) by central differences, replicated border, float32: the values of
     ``cv2.Sobel(a, CV_32F, 1, 0 / 0, 1, ksize=1, scale=0.5, BORDER_REPLICATE)`` (tested equal) in one
-    compiled pass instead of two OpenCV calls (8 vs 38 us on a 95x48 region)."""
+    compiled pass instead of two OpenCV calls (7 vs 38 us on a 96x48 region)."""
     return _diff_pair(np.ascontiguousarray(a, dtype=np.float32))
 
 
 @numba.njit(cache=True, boundscheck=False)  # no fastmath: the same float32 arithmetic as OpenCV's
 def _diff_pair(a):  # pragma: no cover (compiled)
+    """Flat unsigned indices (no wrap-around checks), the interior of each row in one loop."""
     H, W = a.shape
+    af = a.reshape(H * W)
     dx = np.empty((H, W), np.float32)
     dy = np.empty((H, W), np.float32)
+    xf = dx.reshape(H * W)
+    yf = dy.reshape(H * W)
     half = np.float32(0.5)
+    uW = np.uint64(W)
+    u1 = np.uint64(1)
     for i in range(H):
-        im, ip = max(i - 1, 0), min(i + 1, H - 1)
-        for j in range(W):
-            dx[i, j] = (a[i, min(j + 1, W - 1)] - a[i, max(j - 1, 0)]) * half
-            dy[i, j] = (a[ip, j] - a[im, j]) * half
+        b = np.uint64(i) * uW
+        bm = np.uint64(max(i - 1, 0)) * uW
+        bp = np.uint64(min(i + 1, H - 1)) * uW
+        for j in range(uW):
+            yf[b + j] = (af[bp + j] - af[bm + j]) * half
+        if W == 1:
+            xf[b] = (af[b] - af[b]) * half
+            continue
+        xf[b] = (af[b + u1] - af[b]) * half
+        for j in range(u1, uW - u1):
+            xf[b + j] = (af[b + j + u1] - af[b + j - u1]) * half
+        xf[b + uW - u1] = (af[b + uW - u1] - af[b + uW - u1 - u1]) * half
     return dx, dy
 
 
