@@ -19,6 +19,17 @@ def _iou(a, b):
     return (a & b).sum() / (a | b).sum()
 
 
+def _kernel(phi, em, cfg, n, alpha=None, stop=(0, 0, 0.0), n_refine=0):
+    """``_band_iterations`` on ``phi`` in place with ``cfg``'s weights; ``stop`` = (check_every, checks
+    back, tolerance), 0 for none. Returns its (main iterations, checks, refined)."""
+    f32 = np.float32
+    dps, de = L._luts(cfg.dirac_width)
+    return L._band_iterations(phi, em.g, em.gx, em.gy, n, f32(cfg.distance_weight), f32(cfg.length_weight),
+                              f32(cfg.area_weight if alpha is None else alpha), f32(cfg.dirac_width),
+                              f32(cfg.timestep), f32(cfg.band_px), dps, de, *stop, np.zeros(n // 5 + 4, np.int64),
+                              n_refine)
+
+
 @pytest.mark.parametrize("a, b", [(14, 14), (14, 28), (22, 12)])
 def test_planted_disk_and_ellipses_recovered(a, b):
     img, truth = _blob(a=a, b=b)
@@ -60,10 +71,7 @@ def test_fast_kernel_equals_reference_step():
     phi = (np.clip(d_out - d_in, -1.5, 1.5) * 0.5).astype(np.float32)  # every pixel inside the band
     ref = L.evolve_reference(phi, em, cfg, 1)
     fast = phi.copy()
-    dps, de = L._luts(cfg.dirac_width)
-    L._band_iterations(fast, em.g, em.gx, em.gy, 1, np.float32(cfg.distance_weight), np.float32(cfg.length_weight),
-                       np.float32(cfg.area_weight), np.float32(cfg.dirac_width), np.float32(cfg.timestep),
-                       np.float32(cfg.band_px), dps, de, 0, 0, 0.0, np.zeros(4, np.int64), 0)
+    _kernel(fast, em, cfg, 1)
     np.testing.assert_allclose(fast[1:-1, 1:-1], ref[1:-1, 1:-1], atol=1e-5)
 
 
@@ -92,14 +100,10 @@ def test_band_kernel_follows_a_moving_front_like_the_dense_band_scheme():
     cfg = L.LevelSetConfig()
     em = L.edge_map(img, cfg)
     phi0 = L.box_step(img.shape, (14, 4, 52, 92), cfg.step_height)
-    dps, de = L._luts(cfg.dirac_width)
 
     def kernel(n):
         phi = phi0.copy()
-        L._band_iterations(phi, em.g, em.gx, em.gy, n, np.float32(cfg.distance_weight),
-                           np.float32(cfg.length_weight), np.float32(cfg.area_weight), np.float32(cfg.dirac_width),
-                           np.float32(cfg.timestep), np.float32(cfg.band_px), dps, de, 0, 0, 0.0,
-                           np.zeros(4, np.int64), 0)
+        _kernel(phi, em, cfg, n)
         return phi
 
     np.testing.assert_allclose(kernel(8), _narrow_band_oracle(phi0, em, cfg, 8), atol=1e-3)
@@ -115,25 +119,17 @@ def test_refinement_in_the_same_call_equals_a_second_call_with_alpha_zero():
     cfg = L.LevelSetConfig()
     em = L.edge_map(img, cfg)
     phi0 = L.box_step(img.shape, (21, 12, 38, 76), cfg.step_height)
-    dps, de = L._luts(cfg.dirac_width)
-    f32 = np.float32
-    common = (f32(cfg.distance_weight), f32(cfg.length_weight))
-    rest = (f32(cfg.dirac_width), f32(cfg.timestep), f32(cfg.band_px), dps, de)
-    one = phi0.copy()
-    got = L._band_iterations(one, em.g, em.gx, em.gy, 40, *common, f32(cfg.area_weight), *rest, 5, 2, 0.002,
-                             np.zeros(10, np.int64), 7)
-    two = phi0.copy()
-    first = L._band_iterations(two, em.g, em.gx, em.gy, 40, *common, f32(cfg.area_weight), *rest, 5, 2, 0.002,
-                               np.zeros(10, np.int64), 0)
+    rule = (5, 2, 0.002)
+    one, two = phi0.copy(), phi0.copy()
+    got = _kernel(one, em, cfg, 40, stop=rule, n_refine=7)
+    first = _kernel(two, em, cfg, 40, stop=rule)
     assert first[2] is False and got[:2] == first[:2] and got[2] is True
     before = two.copy()
-    L._band_iterations(two, em.g, em.gx, em.gy, 7, *common, f32(0.0), *rest, 0, 0, 0.0, np.zeros(4, np.int64), 0)
+    _kernel(two, em, cfg, 7, alpha=0.0)
     assert not np.array_equal(before, two)  # the refinement moved something
     np.testing.assert_array_equal(one, two)
     # nothing inside: no refinement
-    empty = np.full(img.shape, f32(2.0))
-    assert L._band_iterations(empty, em.g, em.gx, em.gy, 10, *common, f32(cfg.area_weight), *rest, 5, 2, 0.002,
-                              np.zeros(10, np.int64), 7)[2] is False
+    assert _kernel(np.full(img.shape, np.float32(2.0)), em, cfg, 10, stop=rule, n_refine=7)[2] is False
 
 
 def test_fast_and_reference_segment_alike():
