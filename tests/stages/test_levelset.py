@@ -94,8 +94,8 @@ def _narrow_band_oracle(phi, em, cfg, iterations):
 
 def test_band_kernel_follows_a_moving_front_like_the_dense_band_scheme():
     # a cold start far outside the target: the front crosses ~20 px, so the band leaves every pixel
-    # it started on and the kernel's incremental band bookkeeping (recomputed only where phi can have
-    # moved) is exercised; a pixel missed there would stall part of the front
+    # it started on and the kernel's band bookkeeping (band test, dilations, scan box) is exercised;
+    # a pixel missed there would stall part of the front
     img, _ = _blob()
     cfg = L.LevelSetConfig()
     em = L.edge_map(img, cfg)
