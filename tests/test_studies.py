@@ -43,3 +43,16 @@ def test_chnn_radar_study(tmp_path):
     assert len(r["two"]["alg1"]["per_target"]) == 2
     assert r["paper"]["single"]["alg1"]["pos"] == 98.0313
     assert (tmp_path / "single_target_rms_pos.png").is_file() and (tmp_path / "two_trajectories.png").is_file()
+
+
+def test_output_fingerprint_saves_and_checks(tmp_path):
+    fp = tmp_path / "fp.json"
+    args = ("--scenes-dir", str(tmp_path / "scenes"), "--only", "fast-s0")
+    run_tool("output_fingerprint.py", *args, "--save", str(fp))
+    saved = json.loads(fp.read_text())
+    assert list(saved) == ["fast-s0"] and len(saved["fast-s0"]) == 64
+    run_tool("output_fingerprint.py", *args, "--check", str(fp))  # the same code: byte-identical
+    fp.write_text(json.dumps({"fast-s0": "0" * 64}))
+    r = subprocess.run([sys.executable, str(ROOT / "tools" / "output_fingerprint.py"), *args, "--check", str(fp)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 1 and "output differs: fast-s0" in r.stderr
