@@ -352,8 +352,8 @@ def extract_contour(
 
 @cache
 def warm_up() -> None:
-    """Compile or load the contour stage's numba kernels (the level set's and :func:`_reach`) once per
-    process, so that a tracker's first timed frame does not pay for it."""
+    """Compile or load the contour stage's numba kernels (the level set's, :func:`_reach` and the ring
+    contrast's) once per process, so that a tracker's first timed frame does not pay for it."""
     levelset.warm_up()
     phi = np.full((6, 6), 2.0, np.float32)
     phi[2:4, 2:4] = -2.0
