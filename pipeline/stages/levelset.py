@@ -346,7 +346,6 @@ def _near_at(pf, k, i, j, H, uW, band):  # pragma: no cover (compiled)
     return np.uint8(v)
 
 
-
 # error_model numpy: no zero test before each division (none divides by zero: 1 / (s + tiny), 1 / s for s >= 1)
 @numba.njit(cache=True, boundscheck=False, fastmath=True, error_model="numpy")
 def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_lut, de_lut,
