@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from pipeline.synthetic.sprites import Palette, Sprite, car, person, pillar, truck
+from pipeline.synthetic.sprites import Palette, Sprite, car, cyclist, person, pillar, truck
 
 PathFn = Callable[[float], tuple[float, float, float]]
 """frame number (1-based, float) -> (cx, cy, scale): box centre in px and size factor."""
@@ -54,6 +54,7 @@ class Actor:
     height_px: float = 0.0  # pillar height
     walk_phase_per_px: float = 0.0  # walk cycles per px moved (0: derived from size)
     name: str = ""
+    facing_auto: bool = False  # turn the sprite to face the way it moves (cars, cyclists that turn back)
 
     def depth_at(self, t: float) -> float:
         return self.depth(t) if callable(self.depth) else float(self.depth)
@@ -72,8 +73,70 @@ class Shadow:
 
 
 @dataclass(frozen=True)
+class MaskShadow:
+    """A visible-channel shadow of any drawn shape: a soft mask (0..1) whose top-left corner follows ``path``.
+
+    ``factor`` is the brightness left under the mask's core (0 black, 1 no shadow);
+    ``ir_cooling`` grey levels are taken off the infrared where a static shadow has
+    cooled the ground (0 for moving shadows).
+    """
+
+    mask: np.ndarray
+    path: Callable[[float], tuple[float, float]]
+    factor: float = 0.5
+    ir_cooling: float = 0.0
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """Optics and sensor effects applied to every frame.
+
+    ``vis_blur_px`` / ``ir_blur_px``: Gaussian optics blur (sigma, px). ``vignetting``:
+    the visible image falls off by this share towards the corners (0 none).
+    ``ir_shift_px``: misregistration, the infrared image is displaced by (dx, dy) px from
+    the visible one (its truth with it). ``jitter_px``: ``(n_frames, 2)`` camera shake,
+    both images (and the truth) displaced by (dx, dy) px at each frame, or None.
+    """
+
+    vis_blur_px: float = 0.5
+    ir_blur_px: float = 0.7
+    vignetting: float = 0.0
+    ir_shift_px: tuple[float, float] = (0.0, 0.0)
+    jitter_px: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class RenderedFrame:
+    """One rendered frame pair and its exact truth.
+
+    ``truth_visible`` / ``truth_infrared``: per target id the box in each channel (None when
+    the target is out of view); ``visibility``: share of the target's own in-frame pixels
+    that nothing nearer covers; ``in_frame``: share of the target's full box inside the
+    frame; ``shade``: the visible shadow multiplier (H, W) or None; ``masks``: per target
+    its amodal alpha (H, W) in visible-frame px, when asked for.
+    """
+
+    visible: np.ndarray
+    infrared: np.ndarray
+    infrared_float: np.ndarray
+    truth_visible: dict[int, tuple[float, float, float, float] | None]
+    truth_infrared: dict[int, tuple[float, float, float, float] | None]
+    visibility: dict[int, float]
+    in_frame: dict[int, float]
+    shade: np.ndarray | None = None
+    masks: dict[int, np.ndarray] | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
-    """Everything needed to render a scenario."""
+    """Everything needed to render a scenario.
+
+    ``background_images``: a drawn ``(visible RGB 0..1, IR grey)`` pair used instead of the
+    default facade-and-pavement background; ``clip_truth``: boxes are clipped to the frame
+    (the visible extent, as annotators draw it) and a target with less than
+    ``min_in_frame`` of its box inside has no truth (default: the amodal box, absent only
+    when wholly outside).
+    """
 
     name: str
     description: str
@@ -87,6 +150,11 @@ class Scene:
     ir_noise: float = 2.5
     ir_ambient: float = 95.0
     notes: dict[str, object] = field(default_factory=dict)
+    background_images: tuple[np.ndarray, np.ndarray] | None = None
+    mask_shadows: tuple[MaskShadow, ...] = ()
+    sensor: Sensor = field(default_factory=Sensor)
+    clip_truth: bool = False
+    min_in_frame: float = 0.0
 
 
 def _smooth_noise(rng: np.random.Generator, h: int, w: int, sigma: float) -> np.ndarray:
@@ -138,39 +206,84 @@ class Renderer:
     def __init__(self, scene: Scene, seed: int):
         self.scene = scene
         self.rng = np.random.default_rng(seed)
-        self.bg_vis, self.bg_ir = background(scene, self.rng)
-        self._sprites: list[list[Sprite]] = []
+        if scene.background_images is not None:
+            self.bg_vis = np.asarray(scene.background_images[0], np.float32).copy()
+            self.bg_ir = np.asarray(scene.background_images[1], np.float32).copy()
+        else:
+            self.bg_vis, self.bg_ir = background(scene, self.rng)
+        for ms in scene.mask_shadows:  # static shadows have cooled the ground under them
+            if ms.ir_cooling:
+                self._paste(self.bg_ir, ms.mask, ms.path(1.0), lambda roi, m, c=ms.ir_cooling: roi - c * m)
+        self._sprites: list[dict[int, list[Sprite]]] = []
         self._layer_cache: dict[tuple[int, int, int], np.ndarray] = {}
         self._vis_bank = [self.rng.standard_normal((scene.height, scene.width, 3), dtype=np.float32) for _ in range(6)]
         self._ir_bank = [self.rng.standard_normal((scene.height, scene.width), dtype=np.float32) for _ in range(6)]
-        self._ref: list[tuple[float, float, float]] = []  # reference box centre x, y and height (canvas px)
+        # reference box centre x, y and height (canvas px), per facing
+        self._ref: list[dict[int, tuple[float, float, float]]] = []
         self._dist: list[float] = [0.0] * len(scene.actors)
         self._last_pos: list[tuple[float, float] | None] = [None] * len(scene.actors)
+        self._facing: list[int] = [a.facing for a in scene.actors]
         for a in scene.actors:
-            self._sprites.append(self._make_sprites(a))
-            b = self._sprites[-1][0].box
-            ref_dim = b[3] - b[1] if a.kind == "person" else b[2] - b[0]  # height of people, length/width of the rest
-            self._ref.append(((b[0] + b[2]) / 2, (b[1] + b[3]) / 2, ref_dim))
+            seed_a = int(self.rng.integers(1 << 31))
+            facings = (1, -1) if a.facing_auto else (a.facing,)
+            sets = {f: self._make_sprites(a, np.random.default_rng(seed_a), f) for f in facings}
+            self._sprites.append(sets)
+            refs = {}
+            for f, sprites in sets.items():
+                b = sprites[0].box
+                ref_dim = b[3] - b[1] if a.kind in ("person", "cyclist") else b[2] - b[0]  # height of people
+                refs[f] = ((b[0] + b[2]) / 2, (b[1] + b[3]) / 2, ref_dim)
+            self._ref.append(refs)
+        sen = scene.sensor
+        self._vignette = None
+        if sen.vignetting > 0:
+            yy, xx = np.mgrid[0 : scene.height, 0 : scene.width].astype(np.float32)
+            r2 = ((xx + 0.5 - scene.width / 2) ** 2 + (yy + 0.5 - scene.height / 2) ** 2) / (
+                (scene.width / 2) ** 2 + (scene.height / 2) ** 2)
+            self._vignette = (1.0 - np.float32(sen.vignetting) * r2)[..., None].astype(np.float32)
 
-    def _make_sprites(self, a: Actor) -> list[Sprite]:
+    def _make_sprites(self, a: Actor, srng: np.random.Generator, facing: int) -> list[Sprite]:
         max_scale = max(a.path(t)[2] for t in np.linspace(1, self.scene.n_frames, 50))
         res = 3.0 * a.size_px * max_scale  # canvas px of the reference dimension
-        srng = np.random.default_rng(self.rng.integers(1 << 31))
         if a.kind == "person":
             return [person(res, a.palette, ph, srng) for ph in np.arange(8) / 8]
+        if a.kind == "cyclist":
+            state = srng.bit_generator.state
+            out = []
+            for ph in np.arange(4) / 4:  # the same textures in every pedal phase
+                srng.bit_generator.state = state
+                out.append(cyclist(res, a.palette, a.body_color, ph, srng, facing))
+            return out
         if a.kind == "car":
-            return [car(res, a.body_color, srng, a.facing)]
+            return [car(res, a.body_color, srng, facing)]
         if a.kind == "truck":
-            return [truck(res, a.body_color, srng, a.facing)]
+            return [truck(res, a.body_color, srng, facing)]
         if a.kind == "pillar":
             k = res / a.size_px
             return [pillar(res, a.height_px * k, a.body_color, srng)]
         raise ValueError(f"unknown actor kind {a.kind!r}")
 
+    @staticmethod
+    def _paste(img: np.ndarray, mask: np.ndarray, pos: tuple[float, float], op) -> None:
+        """``img[region] = op(img[region], mask[part])`` for ``mask`` placed with its top-left corner at ``pos``."""
+        h, w = img.shape[:2]
+        ox, oy = int(round(pos[0])), int(round(pos[1]))
+        x0, y0 = max(ox, 0), max(oy, 0)
+        x1, y1 = min(ox + mask.shape[1], w), min(oy + mask.shape[0], h)
+        if x1 <= x0 or y1 <= y0:
+            return
+        m = mask[y0 - oy : y1 - oy, x0 - ox : x1 - ox]
+        img[y0:y1, x0:x1] = op(img[y0:y1, x0:x1], m)
+
     def _placement(self, i: int, t: float) -> tuple[Sprite, np.ndarray, tuple[float, float, float, float]]:
         a = self.scene.actors[i]
         cx, cy, s = a.path(t)
-        sprites = self._sprites[i]
+        if a.facing_auto:
+            vx = a.path(t + 0.5)[0] - a.path(t - 0.5)[0]
+            if abs(vx) > 0.05:
+                self._facing[i] = 1 if vx > 0 else -1
+        facing = self._facing[i]
+        sprites = self._sprites[i][facing]
         if len(sprites) > 1:
             last = self._last_pos[i]
             if last is not None:
@@ -180,7 +293,7 @@ class Renderer:
             sprite = sprites[int((self._dist[i] * per_px * len(sprites)) % len(sprites))]
         else:
             sprite = sprites[0]
-        rx, ry, rdim = self._ref[i]
+        rx, ry, rdim = self._ref[i][facing]
         k = a.size_px * s / rdim
         M = np.array([[k, 0.0, cx - k * rx], [0.0, k, cy - k * ry]], np.float64)
         b = sprite.box
@@ -208,21 +321,50 @@ class Renderer:
 
     def render(self, t: int) -> tuple[np.ndarray, np.ndarray, dict[int, tuple[tuple[float, float, float, float] | None, float]]]:
         """Frame ``t`` (1-based): visible BGR uint8, IR uint8, and per target ``(box or None, visibility)``."""
+        f = self.render_frame(t)
+        return f.visible, f.infrared, {tid: (box, f.visibility[tid]) for tid, box in f.truth_visible.items()}
+
+    def _truth_box(self, box: tuple[float, float, float, float], dx: float, dy: float
+                   ) -> tuple[tuple[float, float, float, float] | None, float]:
+        """The truth box displaced by (dx, dy) and the share of it inside the frame (clipped if the scene says)."""
         sc = self.scene
+        w, h = sc.width, sc.height
+        x, y, bw, bh = box[0] + dx, box[1] + dy, box[2], box[3]
+        ix0, iy0 = max(x, 0.0), max(y, 0.0)
+        ix1, iy1 = min(x + bw, float(w)), min(y + bh, float(h))
+        inside_area = max(ix1 - ix0, 0.0) * max(iy1 - iy0, 0.0)
+        frac = inside_area / (bw * bh) if bw * bh > 0 else 0.0
+        if not sc.clip_truth:
+            inside = x < w and y < h and x + bw > 0 and y + bh > 0
+            return ((x, y, bw, bh) if inside else None), frac
+        if inside_area <= 0 or frac < sc.min_in_frame:
+            return None, frac
+        return (ix0, iy0, ix1 - ix0, iy1 - iy0), frac
+
+    @staticmethod
+    def _shift(img: np.ndarray, dx: float, dy: float) -> np.ndarray:
+        M = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], np.float64)
+        return cv2.warpAffine(img, M, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REFLECT_101)
+
+    def render_frame(self, t: int, masks: bool = False) -> RenderedFrame:
+        """Frame ``t`` (1-based) with its truth per channel; ``masks`` adds each target's amodal alpha."""
+        sc = self.scene
+        sen = sc.sensor
         h, w = sc.height, sc.width
         vis = self.bg_vis.copy()
         ir = self.bg_ir.copy()
         owner = np.zeros((h, w), np.int16)
         own_area: dict[int, int] = {}
-        boxes: dict[int, tuple[float, float, float, float] | None] = {}
+        boxes: dict[int, tuple[float, float, float, float]] = {}
+        alphas: dict[int, np.ndarray] = {}
         order = sorted(range(len(sc.actors)), key=lambda i: sc.actors[i].depth_at(t))
         placements = {i: self._placement(i, float(t)) for i in range(len(sc.actors))}
         for i in order:
             a = sc.actors[i]
             sprite, M, box = placements[i]
             if a.target_id > 0:
-                inside = box[0] < w and box[1] < h and box[0] + box[2] > 0 and box[1] + box[3] > 0
-                boxes[a.target_id] = box if inside else None
+                boxes[a.target_id] = box
             k = M[0, 0]
             x0 = max(int(math.floor(M[0, 2])) - 2, 0)
             y0 = max(int(math.floor(M[1, 2])) - 2, 0)
@@ -252,6 +394,10 @@ class Renderer:
             owner[y0:y1, x0:x1][solid] = code
             if a.target_id > 0:
                 own_area[a.target_id] = int(solid.sum())
+                if masks:
+                    full = np.zeros((h, w), np.float32)
+                    full[y0:y1, x0:x1] = alpha
+                    alphas[a.target_id] = full
         for shd in sc.shadows:
             cx, cy, rx, ry = shd.path(float(t))
             pad = 3.0 * shd.softness_px
@@ -264,19 +410,43 @@ class Renderer:
                         0, 0, 360, 1.0, -1, cv2.LINE_AA, shift=2)
             m = cv2.GaussianBlur(m, (0, 0), shd.softness_px, borderType=cv2.BORDER_REPLICATE)
             vis[sy0:sy1, sx0:sx1] *= (1.0 - (1.0 - shd.factor) * m)[..., None]
+        shade = None
+        if sc.mask_shadows:
+            shade = np.ones((h, w), np.float32)
+            for ms in sc.mask_shadows:
+                self._paste(shade, ms.mask, ms.path(float(t)),
+                            lambda roi, m, f=ms.factor: roi * (1.0 - np.float32(1.0 - f) * m))
+            vis *= shade[..., None]
         gain = sc.illumination(float(t)) if sc.illumination else 1.0
-        vis = cv2.GaussianBlur(vis, (0, 0), 0.5)
+        if self._vignette is not None:
+            vis *= self._vignette
+        jx, jy = (float(sen.jitter_px[t - 1, 0]), float(sen.jitter_px[t - 1, 1])) if sen.jitter_px is not None else (0.0, 0.0)
+        ix, iy = jx + sen.ir_shift_px[0], jy + sen.ir_shift_px[1]
+        if jx or jy:
+            vis = self._shift(vis, jx, jy)
+            for tid in alphas:
+                alphas[tid] = self._shift(alphas[tid], jx, jy)
+        if ix or iy:
+            ir = self._shift(ir, ix, iy)
+        vis = cv2.GaussianBlur(vis, (0, 0), sen.vis_blur_px)
         vis *= np.float32(255.0 * gain)
         vis += self._noise(self._vis_bank) * np.float32(sc.vis_noise)
-        ir = cv2.GaussianBlur(ir, (0, 0), 0.7)
+        ir = cv2.GaussianBlur(ir, (0, 0), sen.ir_blur_px)
         ir += self._noise(self._ir_bank) * np.float32(sc.ir_noise)
         vis += np.float32(0.5)
         ir += np.float32(0.5)
+        ir_float = ir.copy()
         vis_u8 = cv2.cvtColor(np.clip(vis, 0, 255, out=vis).astype(np.uint8), cv2.COLOR_RGB2BGR)
         ir_u8 = np.clip(ir, 0, 255, out=ir).astype(np.uint8)
-        truth = {}
+        truth_vis: dict[int, tuple[float, float, float, float] | None] = {}
+        truth_ir: dict[int, tuple[float, float, float, float] | None] = {}
+        visibility: dict[int, float] = {}
+        in_frame: dict[int, float] = {}
         for tid, box in boxes.items():
+            truth_vis[tid], in_frame[tid] = self._truth_box(box, jx, jy)
+            truth_ir[tid], _ = self._truth_box(box, ix, iy)
             area = own_area.get(tid, 0)
             visible = int((owner == tid).sum())
-            truth[tid] = (box, (visible / area) if area else 0.0)
-        return vis_u8, ir_u8, truth
+            visibility[tid] = (visible / area) if area else 0.0
+        return RenderedFrame(vis_u8, ir_u8, ir_float, truth_vis, truth_ir, visibility, in_frame, shade,
+                             alphas if masks else None)

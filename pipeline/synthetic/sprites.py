@@ -70,6 +70,14 @@ class _Canvas:
         m = self._mask(lambda img: cv2.ellipse(img, c, a, angle, 0, 360, 255, -1, cv2.LINE_AA, shift=2))
         self._paint(m, color, heat, texture)
 
+    def ring(self, center, radius: float, width: float, color, heat: float) -> None:
+        """A circle outline ``width`` thick (a tyre): only the ring is opaque."""
+        c = (round(center[0] * SS), round(center[1] * SS))
+        r = max(round((radius - width / 2) * SS), 1)
+        t = max(round(width), 1)
+        m = self._mask(lambda img: cv2.circle(img, c, r, 255, t, cv2.LINE_AA, shift=2))
+        self._paint(m, color, heat, None)
+
     def _paint(self, m: np.ndarray, color, heat: float, texture: np.ndarray | None) -> None:
         col = np.asarray(color, np.float32) / 255.0
         layer = np.broadcast_to(col, self.rgb.shape)
@@ -209,4 +217,60 @@ def pillar(width_px: float, height_px: float, color: tuple[int, int, int], rng: 
     # a lighter edge so it reads as a 3-D object
     cv.poly([(0, 0), (width_px * 0.15, 0), (width_px * 0.15, height_px), (0, height_px)],
             tuple(min(int(c * 1.25), 255) for c in color), 0.05, tex)
+    return cv.done()
+
+
+def cyclist(height_px: float, palette: Palette, body: tuple[int, int, int], phase: float, rng: np.random.Generator,
+            facing: int = 1) -> Sprite:
+    """A person riding a bicycle, seen from the side, ``height_px`` tall (wheels to head), at pedal ``phase``.
+
+    Heat: head 1.0, hands 0.9, torso 0.75, legs 0.7, tyres 0.35, frame 0.2.
+    """
+    H = height_px
+    L = 1.05 * H  # wheelbase plus the wheels
+    cw, ch = int(math.ceil(L)) + 2, int(math.ceil(H)) + 2
+    cv = _Canvas(cw, ch)
+    tex = _texture(ch, cw, palette.pattern, 0.035 * H, rng)
+    plain = _texture(ch, cw, "plain", 1, rng)
+
+    def X(u: float) -> float:
+        return (u if facing > 0 else L - u)
+
+    r = 0.19 * H
+    wy = H - r - 0.01 * H
+    back, front = 0.22 * H, L - 0.22 * H
+    for wx in (back, front):  # tyres and a few spokes: the wheels are mostly see-through
+        cv.ring((X(wx), wy), r, max(0.05 * H, 1.0), (25, 25, 25), 0.35)
+        cv.ellipse((X(wx), wy), (0.1 * r, 0.1 * r), (60, 60, 60), 0.3)
+    crank = (0.48 * L, wy - 0.02 * H)
+    seat = (0.40 * L, 0.52 * H)
+    bar = (0.74 * L, 0.45 * H)
+    fw = 0.025 * H
+
+    def beam(a: tuple[float, float], b: tuple[float, float], width: float, color, heat: float, texture=None) -> None:
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        n = math.hypot(dx, dy) or 1.0
+        px, py = -dy / n * width / 2, dx / n * width / 2
+        cv.poly([(X(a[0]) + (px if facing > 0 else -px), a[1] + py), (X(a[0]) - (px if facing > 0 else -px), a[1] - py),
+                 (X(b[0]) - (px if facing > 0 else -px), b[1] - py), (X(b[0]) + (px if facing > 0 else -px), b[1] + py)],
+                color, heat, texture)
+
+    for a, b in ((( back, wy), crank), (crank, seat), (seat, (back, wy)), (seat, bar), (crank, bar), (bar, (front, wy))):
+        beam(a, b, fw, body, 0.2)
+    # rider: legs to the pedals (one phase), torso leaning forward, arms to the bar, head
+    ang = 2 * math.pi * phase
+    hip = (seat[0] + 0.01 * H, seat[1] - 0.03 * H)
+    for k, sgn in ((0, 1), (1, -1)):
+        pedal = (crank[0] + sgn * 0.09 * H * math.cos(ang), crank[1] + sgn * 0.09 * H * math.sin(ang))
+        knee = ((hip[0] + pedal[0]) / 2 + 0.10 * H, (hip[1] + pedal[1]) / 2 - 0.05 * H)
+        beam(hip, knee, 0.085 * H, palette.bottom, 0.7, plain)
+        beam(knee, pedal, 0.07 * H, palette.bottom, 0.7, plain)
+        beam((pedal[0] - 0.03 * H, pedal[1]), (pedal[0] + 0.04 * H, pedal[1]), 0.035 * H, palette.shoes, 0.4)
+    shoulder = (0.58 * L, 0.20 * H)
+    beam(hip, shoulder, 0.17 * H, palette.top, 0.75, tex)
+    beam(shoulder, bar, 0.06 * H, palette.top, 0.8, tex)
+    cv.ellipse((X(bar[0]), bar[1]), (0.035 * H, 0.035 * H), palette.skin, 0.9)
+    head = (shoulder[0] + 0.06 * H, 0.085 * H)
+    cv.ellipse((X(head[0]), head[1]), (0.065 * H, 0.075 * H), palette.skin, 1.0)
+    cv.ellipse((X(head[0]), head[1] - 0.03 * H), (0.07 * H, 0.045 * H), palette.hair, 0.85)
     return cv.done()
