@@ -49,18 +49,58 @@ def _ranges(mask: np.ndarray) -> list[list[int]]:
     return out
 
 
-def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = False, progress: bool | None = None) -> Path:
-    """Render scenario ``name`` into ``out_dir`` (the sequence folder); returns the folder."""
-    if name not in SCENARIOS:
-        raise InputError(f"unknown scenario {name!r}; available: {', '.join(SCENARIOS)}")
+def _prepare(out_dir: str | Path, force: bool) -> Path:
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out} exists and is not a folder")
     if out.exists() and any(out.iterdir()):
         if not force:
             raise InputError(f"{out} already exists and is not empty; pass --force to overwrite it")
         shutil.rmtree(out)
-    scene = SCENARIOS[name]
     (out / "visible").mkdir(parents=True, exist_ok=True)
     (out / "infrared").mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _box_lines(b: np.ndarray) -> list[str]:
+    return ["0,0,0,0" if np.isnan(r).any() else ",".join(f"{x:.3f}" for x in r) for r in b]
+
+
+def _write_truth(out: Path, ids: list[int], boxes: dict[str, dict[int, np.ndarray]], vis: dict[int, np.ndarray]) -> None:
+    """``visible.txt``/``infrared.txt``/``init.txt`` for one target, a MOT ``gt.txt`` (visible truth) for several."""
+    n = next(iter(boxes["visible"].values())).shape[0]
+    if len(ids) == 1:
+        for ch, fname in (("visible", "visible.txt"), ("infrared", "infrared.txt")):
+            (out / fname).write_text("\n".join(_box_lines(boxes[ch][ids[0]])) + "\n")
+        (out / "init.txt").write_text(_box_lines(boxes["visible"][ids[0]])[0] + "\n")
+        return
+    rows = []
+    for t in range(n):
+        for tid in ids:
+            r = boxes["visible"][tid][t]
+            if np.isnan(r).any():
+                continue
+            rows.append(f"{t + 1},{tid},{r[0] + 1:.3f},{r[1] + 1:.3f},{r[2]:.3f},{r[3]:.3f},1,1,{vis[tid][t]:.3f}")
+    (out / "gt.txt").write_text("\n".join(rows) + "\n")
+
+
+def _visibility_meta(ids: list[int], boxes: dict[int, np.ndarray], vis: dict[int, np.ndarray]) -> dict[str, object]:
+    return {
+        "occluded_frames": {str(i): _ranges(vis[i] < 0.5) for i in ids},
+        "hidden_frames": {str(i): _ranges(vis[i] < 0.05) for i in ids},
+        "absent_frames": {str(i): _ranges(np.isnan(boxes[i]).any(axis=1)) for i in ids},
+        "visibility": {str(i): [round(float(x), 3) for x in vis[i]] for i in ids},
+    }
+
+
+def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = False, progress: bool | None = None) -> Path:
+    """Render scenario ``name`` into ``out_dir`` (the sequence folder); returns the folder."""
+    if name not in SCENARIOS:
+        raise InputError(f"unknown scenario {name!r}; available: random, {', '.join(SCENARIOS)}")
+    if not (isinstance(seed, int) and seed >= 0):
+        raise InputError(f"--seed must be a non-negative integer; got {seed!r}")
+    out = _prepare(out_dir, force)
+    scene = SCENARIOS[name]
     renderer = Renderer(scene, seed)
     ids = sorted({a.target_id for a in scene.actors if a.target_id > 0})
     n = scene.n_frames
@@ -78,21 +118,7 @@ def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = Fals
                     boxes[tid][t - 1] = box
                 vis[tid][t - 1] = visibility
             bar.update(1)
-    if len(ids) == 1:
-        b = boxes[ids[0]]
-        lines = ["0,0,0,0" if np.isnan(r).any() else ",".join(f"{x:.3f}" for x in r) for r in b]
-        for fname in ("visible.txt", "infrared.txt"):
-            (out / fname).write_text("\n".join(lines) + "\n")
-        (out / "init.txt").write_text(lines[0] + "\n")
-    else:
-        rows = []
-        for t in range(n):
-            for tid in ids:
-                r = boxes[tid][t]
-                if np.isnan(r).any():
-                    continue
-                rows.append(f"{t + 1},{tid},{r[0] + 1:.3f},{r[1] + 1:.3f},{r[2]:.3f},{r[3]:.3f},1,1,{vis[tid][t]:.3f}")
-        (out / "gt.txt").write_text("\n".join(rows) + "\n")
+    _write_truth(out, ids, {"visible": boxes, "infrared": boxes}, vis)
     meta = {
         "scenario": name,
         "description": scene.description,
@@ -102,10 +128,7 @@ def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = Fals
         "frames": n,
         "targets": [{"id": i, "kind": next(a.kind for a in scene.actors if a.target_id == i)} for i in ids],
         "distractors": [a.name or a.kind for a in scene.actors if a.target_id == 0],
-        "occluded_frames": {str(i): _ranges(vis[i] < 0.5) for i in ids},
-        "hidden_frames": {str(i): _ranges(vis[i] < 0.05) for i in ids},
-        "absent_frames": {str(i): _ranges(np.isnan(boxes[i]).any(axis=1)) for i in ids},
-        "visibility": {str(i): [round(float(x), 3) for x in vis[i]] for i in ids},
+        **_visibility_meta(ids, boxes, vis),
         "attributes": list(ATTRIBUTES.get(name, ("NO",))),
         "notes": scene.notes,
     }
@@ -113,4 +136,102 @@ def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = Fals
     return out
 
 
-__all__ = ["SCENARIOS", "synthesize"]
+IR16_GAIN = 200.0
+IR16_OFFSET = 3000.0
+"""16-bit IR counts = IR16_OFFSET + IR16_GAIN x grey level (before the 8-bit quantisation): a 14-bit-like range."""
+
+
+def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] | int | None = None,
+                      size: tuple[int, int] = (320, 240), frames: int = 200, ir16: bool = False,
+                      force: bool = False, progress: bool | None = None) -> Path:
+    """Draw the random scene of ``seed`` (:mod:`pipeline.synthetic.family`) and write it into ``out_dir``.
+
+    The folder is in the RGBT234 layout: ``visible/*.jpg``, ``infrared/*.jpg`` (16-bit
+    ``*.png`` with ``ir16``), per-channel truth ``visible.txt`` / ``infrared.txt`` (they
+    differ by the drawn misregistration) and ``init.txt`` for one target or a MOT
+    ``gt.txt`` of the visible truth for several, and ``scene.json`` with every drawn
+    parameter, the per-frame challenge flags per target (``frame_attributes``: 1-based
+    inclusive frame ranges) and the scene-level ``attributes`` list.
+
+    Raises
+    ------
+    InputError
+        A negative seed, a bad target count or size, or a non-empty ``out_dir`` without ``force``.
+    """
+    from pipeline.progress import Progress
+    from pipeline.synthetic.family import ATTRIBUTES as FRAME_ATTRIBUTES
+    from pipeline.synthetic.family import MIN_ATTRIBUTE_FRAMES, draw_scene, frame_attributes
+
+    if not (isinstance(seed, int) and seed >= 0):
+        raise InputError(f"--seed must be a non-negative integer; got {seed!r}")
+    try:
+        drawn = draw_scene(seed, targets, size[0], size[1], frames)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    out = _prepare(out_dir, force)
+    scene = drawn.scene
+    renderer = Renderer(scene, drawn.render_seed)
+    ids = sorted({a.target_id for a in scene.actors if a.target_id > 0})
+    n = scene.n_frames
+    boxes = {ch: {i: np.full((n, 4), np.nan) for i in ids} for ch in ("visible", "infrared")}
+    vis = {i: np.zeros(n) for i in ids}
+    flags = {i: {a: np.zeros(n, bool) for a in FRAME_ATTRIBUTES} for i in ids}
+    first_size: dict[int, float] = {}
+    last_center: dict[int, tuple[float, float]] = {}
+    qv, qi = drawn.jpeg_quality
+    with Progress(n, f"synth random {seed}", enabled=progress) as bar:
+        for t in range(1, n + 1):
+            f = renderer.render_frame(t)
+            cv2.imwrite(str(out / "visible" / f"{t:05d}v.jpg"), f.visible, [cv2.IMWRITE_JPEG_QUALITY, qv])
+            if ir16:
+                raw = np.clip(IR16_OFFSET + IR16_GAIN * f.infrared_float, 0, 65535).astype(np.uint16)
+                cv2.imwrite(str(out / "infrared" / f"{t:05d}i.png"), raw)
+            else:
+                cv2.imwrite(str(out / "infrared" / f"{t:05d}i.jpg"), f.infrared, [cv2.IMWRITE_JPEG_QUALITY, qi])
+            for tid in ids:
+                for ch, tb in (("visible", f.truth_visible), ("infrared", f.truth_infrared)):
+                    if tb.get(tid) is not None:
+                        boxes[ch][tid][t - 1] = tb[tid]
+                vis[tid][t - 1] = f.visibility.get(tid, 0.0)
+            for tid, fl in frame_attributes(drawn, t, f, first_size, last_center).items():
+                for a, v in fl.items():
+                    flags[tid][a][t - 1] = v
+            bar.update(1)
+    _write_truth(out, ids, boxes, vis)
+    present = [a for a in FRAME_ATTRIBUTES if any(int(flags[i][a].sum()) >= MIN_ATTRIBUTE_FRAMES for i in ids)]
+    meta = {
+        "scenario": "random",
+        "family": "random",
+        "description": scene.description,
+        "seed": seed,
+        "width": scene.width,
+        "height": scene.height,
+        "frames": n,
+        "ir16": ir16,
+        "targets": [{"id": i, "kind": next(a.kind for a in scene.actors if a.target_id == i)} for i in ids],
+        "distractors": [a.name or a.kind for a in scene.actors if a.target_id == 0],
+        **_visibility_meta(ids, boxes["visible"], vis),
+        "attributes": present,
+        "frame_attributes": {str(i): {a: _ranges(flags[i][a]) for a in FRAME_ATTRIBUTES} for i in ids},
+        "params": drawn.params,
+    }
+    (out / "scene.json").write_text(json.dumps(json_ready(meta), indent=1) + "\n")
+    return out
+
+
+def json_ready(x: object) -> object:
+    """Numpy scalars and tuples in ``x`` made plain JSON values."""
+    if isinstance(x, dict):
+        return {str(k): json_ready(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [json_ready(v) for v in x]
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.floating | float):
+        return round(float(x), 4)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+__all__ = ["SCENARIOS", "synthesize", "synthesize_random"]

@@ -1,0 +1,130 @@
+"""The random scene family: deterministic by seed, varied, exact truth, attributes, the dev/test split."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pipeline.errors import InputError
+from pipeline.io.sequence import open_sequence
+from pipeline.synthetic import synthesize_random
+from pipeline.synthetic.family import (ATTRIBUTES, DEV_SEEDS, TEST_SEEDS, draw_scene, parse_seed_range,
+                                       parse_target_count)
+from pipeline.synthetic.scene import Renderer
+
+
+def test_same_seed_same_bytes_and_other_seeds_differ(tmp_path):
+    a = synthesize_random(tmp_path / "a", 11, frames=40)
+    b = synthesize_random(tmp_path / "b", 11, frames=40)
+    c = synthesize_random(tmp_path / "c", 12, frames=40)
+    files = sorted(p.relative_to(a).as_posix() for p in a.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(b).as_posix() for p in b.rglob("*") if p.is_file())
+    for f in files:
+        assert (a / f).read_bytes() == (b / f).read_bytes(), f
+    assert (a / "visible/00020v.jpg").read_bytes() != (c / "visible/00020v.jpg").read_bytes()
+
+
+def test_twenty_seeds_draw_twenty_different_scenes():
+    drawn = [json.dumps(draw_scene(s).params, sort_keys=True, default=str) for s in range(20)]
+    assert len(set(drawn)) == 20
+
+
+def test_every_event_kind_occurs_within_fifty_seeds():
+    seen: set[str] = set()
+    for seed in range(50):
+        p = draw_scene(seed).params
+        for e in p["events"]:
+            seen.add(e["event"] + (f"/{e['kind']}" if e["event"] in ("occluder", "shadow") else ""))
+        for t in p["targets"]:
+            seen |= {f"kind/{t['kind']}", f"motion/{t['motion']}", f"scale/{t['scale']}"}
+            seen |= {k for k in ("entering", "crossover", "crosses_target") if t.get(k)}
+            seen |= {"leaving"} if t["leaves_at"] else set()
+        seen |= {"jitter"} if "camera_jitter_px" in p else set()
+        seen.add(f"targets/{len(p['targets'])}")
+    wanted = {"crossing", "cold-look-alike", "warm-distractor", "companion", "occluder/full", "occluder/low-wall",
+              "occluder/pole", "shadow/building", "shadow/tree", "shadow/moving", "illumination-ramp", "flicker",
+              "kind/person", "kind/cyclist", "kind/car", "motion/straight", "motion/curved", "motion/stopping",
+              "motion/turning", "motion/fast", "scale/approach", "scale/recede", "entering", "leaving", "crossover",
+              "crosses_target", "jitter", "targets/1", "targets/2", "targets/3"}
+    assert wanted <= seen, wanted - seen
+
+
+def test_drawn_ranges_hold():
+    for seed in range(40):
+        d = draw_scene(seed)
+        sc = d.scene
+        for a in sc.actors:
+            if a.target_id:
+                xs = np.array([a.path(t) for t in range(1, sc.n_frames + 1)])
+                speed = np.hypot(*np.diff(xs[:, :2], axis=0).T)
+                assert speed.max() <= 12.0 + 3.0 + 1e-6  # 12 px per frame, plus at most 3 of a bend towards a crossing
+                assert 0.4 - 1e-9 <= xs[:, 2].min() and xs[:, 2].max() <= 3.0 + 1e-9
+        shift = d.params["sensor"]["misregistration_px"]
+        assert np.hypot(*shift) <= 3.0 + 1e-3
+        q = d.params["sensor"]["jpeg_quality"]
+        assert 50 <= q["visible"] <= 95 and 50 <= q["infrared"] <= 95
+
+
+@pytest.mark.parametrize("seed", [3, 8, 21])
+def test_truth_is_the_box_of_the_drawn_silhouette(seed):
+    """Rendered with each target's own (amodal) alpha: the box of alpha > 0.5, clipped to the frame, is the truth
+    within 1 px per side; the infrared truth is the visible truth moved by the drawn misregistration."""
+    d = draw_scene(seed, n_frames=60)
+    r = Renderer(d.scene, d.render_seed)
+    dx, dy = d.scene.sensor.ir_shift_px
+    checked = 0
+    for t in range(1, 61):
+        f = r.render_frame(t, masks=True)
+        if t % 7:
+            continue
+        for tid, box in f.truth_visible.items():
+            if box is None or tid not in f.masks:
+                continue
+            ys, xs = np.nonzero(f.masks[tid] > 0.5)
+            if xs.size < 4:
+                continue
+            np.testing.assert_allclose([xs.min(), ys.min(), xs.max() + 1, ys.max() + 1],
+                                       [box[0], box[1], box[0] + box[2], box[1] + box[3]], atol=1.0)
+            ib = f.truth_infrared[tid]
+            if ib is not None and 1 < box[0] and box[0] + box[2] < d.scene.width - 4 and 4 < box[1] and box[1] + box[3] < d.scene.height - 4:
+                np.testing.assert_allclose(ib, (box[0] + dx, box[1] + dy, box[2], box[3]), atol=1e-9)
+            checked += 1
+    assert checked >= 5
+
+
+def test_files_attributes_and_reader(tmp_path):
+    d = synthesize_random(tmp_path / "r", 8, frames=60)
+    seq = open_sequence(d)
+    meta = json.loads((d / "scene.json").read_text())
+    assert seq.layout == "rgbt234" and seq.n_frames == 60 and meta["seed"] == 8 and meta["family"] == "random"
+    assert set(meta["frame_attributes"]["1"]) == set(ATTRIBUTES)
+    assert set(meta["attributes"]) <= set(ATTRIBUTES)
+    assert meta["params"]["targets"] and meta["params"]["sensor"]["jpeg_quality"]["visible"] >= 50
+
+
+def test_ir16_writes_16_bit_frames_that_read_back_normalized(tmp_path):
+    d = synthesize_random(tmp_path / "r", 2, frames=30, ir16=True)
+    seq = open_sequence(d)
+    f = seq.frame(1)
+    assert f.infrared_raw.dtype == np.uint16 and f.infrared.dtype == np.uint8
+
+
+def test_split_and_option_parsing():
+    assert set(DEV_SEEDS).isdisjoint(TEST_SEEDS) and len(TEST_SEEDS) >= 80
+    assert parse_seed_range("3-5") == range(3, 6) and parse_seed_range("7") == range(7, 8)
+    assert parse_target_count("2-3") == (2, 3) and parse_target_count(None) is None
+    for bad in ("5-3", "-1", "a"):
+        with pytest.raises(ValueError):
+            parse_seed_range(bad)
+    for bad in ("0", "2-9", "x"):
+        with pytest.raises(ValueError):
+            parse_target_count(bad)
+    with pytest.raises(InputError, match="non-negative"):
+        synthesize_random("/nonexistent/never-written", -1)
+
+
+def test_target_count_is_honoured():
+    assert {len(draw_scene(s, targets=3).params["targets"]) for s in range(5)} == {3}
+    assert {len(draw_scene(s, targets=(2, 3)).params["targets"]) for s in range(20)} == {2, 3}
