@@ -228,3 +228,181 @@ def format_table(rows: list[dict[str, object]]) -> str:
             cells += [f(r.get("purity")), f(r.get("id_switches")), f(r.get("mota")), f(r.get("idf1"))]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def random_scene_set(count: int | None = None, split: str = "test", seeds: range | None = None,
+                     targets: tuple[int, int] | None = None, out: Path | None = None, size: tuple[int, int] = (320, 240),
+                     frames: int = 200, progress: bool | None = None) -> list[Path]:
+    """Folders of random scenes (:mod:`pipeline.synthetic.family`), generated into ``out`` unless already there.
+
+    ``seeds`` names them outright; otherwise the first ``count`` seeds of the ``split``
+    (``dev``: tuning, ``test``: only ever scored). A folder is reused when its
+    ``scene.json`` was written with the same generator options.
+    """
+    import json as _json
+
+    from pipeline.progress import Progress
+    from pipeline.synthetic import synthesize_random
+    from pipeline.synthetic.family import DEV_SEEDS, TEST_SEEDS
+
+    if split not in ("dev", "test"):
+        raise InputError(f"--split must be dev or test; got {split!r}")
+    if seeds is None:
+        if count is None or count < 1:
+            raise InputError(f"--random takes a number of scenes >= 1; got {count!r}")
+        pool = TEST_SEEDS if split == "test" else DEV_SEEDS
+        if count > len(pool):
+            raise InputError(f"--random {count}: the {split} range has {len(pool)} seeds")
+        seeds = pool[:count]
+    if out is None:
+        raise InputError("random_scene_set needs an output folder")
+    want = {"targets": list(targets) if targets else None, "size": list(size), "frames": frames}
+    dirs = []
+    with Progress(len(seeds), "random scenes", enabled=progress) as bar:
+        for seed in seeds:
+            tag = f"random-{seed:04d}" + (f"-t{targets[0]}-{targets[1]}" if targets else "")
+            d = Path(out) / tag
+            meta = d / "scene.json"
+            ok = False
+            if meta.is_file():
+                try:
+                    m = _json.loads(meta.read_text())
+                    ok = m.get("seed") == seed and m.get("generator") == want
+                except (ValueError, OSError):
+                    ok = False
+            if not ok:
+                synthesize_random(d, seed, targets, size, frames, force=True, progress=False)
+                m = _json.loads(meta.read_text())
+                m["generator"] = want
+                meta.write_text(_json.dumps(m, indent=1) + "\n")
+            dirs.append(d)
+            bar.update(1)
+    return dirs
+
+
+def run_random_bench(count: int | None = None, split: str = "test", seeds: range | None = None,
+                     targets: tuple[int, int] | None = None, trackers: list[str] | None = None, out: Path | None = None,
+                     json_path: Path | None = None, sets: list[str] | None = None, config_path: Path | None = None,
+                     repeat: int = 1, progress: bool | None = None) -> dict[str, object]:
+    """``dualtrack bench --random N``: every tracker on a set of random scenes, and the distribution of its scores.
+
+    Returns ``{"rows": [...], "distribution": {tracker: {...}}, "attributes": {tracker: {attr: {...}}}}``:
+    per tracker the mean, 10th percentile and worst seed of P@20 and AUC (and of identity
+    purity and IDF1 on many-target scenes), the median tracking rate, and per attribute the
+    P@20 and AUC over the frames carrying it (pooled over scenes).
+    """
+    import json as _json
+
+    from pipeline.eval import track_for_truth
+    from pipeline.eval.frame_attributes import attribute_counts, attribute_masks, pool_counts
+    from pipeline.eval.mot import idf1 as idf1_assignment
+    from pipeline.io.results import read_tracks
+
+    tmp = None
+    if out is None:
+        tmp = tempfile.TemporaryDirectory(prefix="dualtrack-random-")
+        out = Path(tmp.name)
+    try:
+        dirs = random_scene_set(count, split, seeds, targets, Path(out) / "scenes", progress=progress)
+        rows = run_bench(dirs, trackers, out=Path(out) / "runs", sets=sets, config_path=config_path, repeat=repeat)
+        seed_of = {d.name: int(_json.loads((d / "scene.json").read_text())["seed"]) for d in dirs}
+        by_dir = {d.name: d for d in dirs}
+        attr_counts: dict[str, list[dict[str, dict[str, object]]]] = {}
+        for r in rows:
+            r["seed"] = seed_of.get(str(r["sequence"]))
+            if "skipped" in r:
+                continue
+            d = by_dir[str(r["sequence"])]
+            run = Path(out) / "runs" / str(r["tracker"]) / d.name
+            seq = open_sequence(d)
+            tracks = read_tracks(run / "tracks.csv", seq.n_frames)
+            ch = seq.truth.primary_channel()
+            gt = seq.truth.boxes[ch] if ch else {}
+            mapping = idf1_assignment(gt, tracks.boxes)["mapping"] if tracks.boxes else {}
+            which = track_for_truth(list(gt), tracks, mapping, "truth")  # type: ignore[arg-type]
+            meta = _json.loads((d / "scene.json").read_text())
+            attr_counts.setdefault(str(r["tracker"]), []).append(
+                attribute_counts(seq.truth, tracks, attribute_masks(meta, seq.n_frames), which))
+        result = {"split": split if seeds is None else "seeds", "seeds": [seed_of[d.name] for d in dirs],
+                  "targets": list(targets) if targets else None, "rows": rows,
+                  "distribution": score_distribution(rows),
+                  "attributes": {t: pool_counts(c) for t, c in attr_counts.items()}}
+        if json_path is not None:
+            Path(json_path).write_text(_json.dumps(_json_clean(result), indent=2) + "\n")
+        return result
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+
+
+def _json_clean(x: object) -> object:
+    from pipeline.eval import json_safe
+
+    return json_safe(x)
+
+
+def score_distribution(rows: list[dict[str, object]]) -> dict[str, dict[str, object]]:
+    """Per tracker over its rows: mean, 10th percentile and worst (with its seed) of each score, median fps."""
+    import numpy as np
+
+    out: dict[str, dict[str, object]] = {}
+    trackers = list(dict.fromkeys(str(r["tracker"]) for r in rows))
+    for t in trackers:
+        mine = [r for r in rows if r["tracker"] == t and "skipped" not in r]
+        if not mine:
+            out[t] = {"skipped": next(r.get("skipped") for r in rows if r["tracker"] == t)}
+            continue
+        d: dict[str, object] = {"scenes": len(mine)}
+        for key in ("p20", "auc", "purity", "idf1", "mota"):
+            vals = [(float(r[key]), r.get("seed")) for r in mine if isinstance(r.get(key), int | float)]
+            if not vals:
+                continue
+            v = np.array([x for x, _ in vals])
+            worst = min(vals, key=lambda p: p[0])
+            d[key] = {"mean": float(v.mean()), "p10": float(np.percentile(v, 10)), "worst": worst[0], "worst_seed": worst[1],
+                      "n": len(vals)}
+        fps = [float(r["fps_tracking"]) for r in mine if isinstance(r.get("fps_tracking"), int | float)]
+        d["fps_tracking_median"] = float(np.median(fps)) if fps else None
+        out[t] = d
+    return out
+
+
+def format_distribution(result: dict[str, object]) -> str:
+    """The tables ``bench --random`` prints: the score distribution per tracker, then per attribute."""
+    dist = result["distribution"]
+    assert isinstance(dist, dict)
+    multi = any("purity" in v for v in dist.values() if isinstance(v, dict))
+    head = ["tracker", "scenes", "P@20 mean", "P@20 p10", "P@20 worst (seed)", "AUC mean", "AUC p10", "AUC worst (seed)"]
+    if multi:
+        head += ["purity mean", "purity p10", "IDF1 mean", "IDF1 p10"]
+    head += ["fps (median)"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+    def f(v: object, nd: int = 3) -> str:
+        return f"{v:.{nd}f}" if isinstance(v, float) else ("" if v is None else str(v))
+
+    for t, d in dist.items():
+        if "skipped" in d:
+            lines.append(f"| {t} | skipped: {d['skipped']} |" + "  |" * (len(head) - 2))
+            continue
+        p, a = d.get("p20", {}), d.get("auc", {})
+        cells = [t, str(d["scenes"]), f(p.get("mean")), f(p.get("p10")), f"{f(p.get('worst'))} ({p.get('worst_seed')})",
+                 f(a.get("mean")), f(a.get("p10")), f"{f(a.get('worst'))} ({a.get('worst_seed')})"]
+        if multi:
+            pu, idf = d.get("purity", {}), d.get("idf1", {})
+            cells += [f(pu.get("mean")), f(pu.get("p10")), f(idf.get("mean")), f(idf.get("p10"))]
+        cells.append(f(d.get("fps_tracking_median"), 0))
+        lines.append("| " + " | ".join(cells) + " |")
+    attrs = result.get("attributes") or {}
+    assert isinstance(attrs, dict)
+    names = sorted({a for v in attrs.values() for a in v})
+    if names:
+        lines += ["", "P@20 / AUC over the frames with each attribute (frames pooled over the scenes):", ""]
+        trk = list(attrs)
+        lines.append("| attribute | frames | " + " | ".join(trk) + " |")
+        lines.append("|" + "---|" * (len(trk) + 2))
+        for name in names:
+            frames = next((int(v[name]["frames"]) for v in attrs.values() if name in v), 0)
+            cells = [f"{f(attrs[t].get(name, {}).get('p20'))} / {f(attrs[t].get(name, {}).get('auc'))}" for t in trk]
+            lines.append(f"| {name} | {frames} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

@@ -31,6 +31,7 @@ def _add_open_options(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     from pipeline import __version__
+    from pipeline.eval.protocols import PROTOCOLS
 
     parser = _Parser(prog=PROG, description="Tracking in registered infrared + visible video.")
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
@@ -49,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE", help="override one parameter")
     p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
     p.add_argument("--no-plots", action="store_true", help="do not write plots/")
-    p.add_argument("--protocol", choices=("default", "gtot", "rgbt234", "lasher"), default="default")
+    p.add_argument("--protocol", choices=PROTOCOLS, default="default")
     p.add_argument("--force", action="store_true", help="overwrite a non-empty run folder")
     p.add_argument("--frames", type=int, default=None, metavar="N", help="stop after N frames")
     _add_open_options(p)
@@ -58,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("seq_dir", type=Path)
     p.add_argument("tracks_csv", type=Path)
     p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
-    p.add_argument("--protocol", choices=("default", "gtot", "rgbt234", "lasher"), default="default")
+    p.add_argument("--protocol", choices=PROTOCOLS, default="default")
     p.add_argument("--ids", choices=("auto", "truth", "assign"), default="auto",
                    help="score each truth id against the track with its id (truth), the IDF1 assignment's track "
                         "(assign, for detection-made ids), or truth when every track id is a truth id (auto)")
@@ -74,11 +75,18 @@ def build_parser() -> argparse.ArgumentParser:
     _add_open_options(p)
 
     p = sub.add_parser("synth", help="write synthetic sequences with exact ground truth")
-    p.add_argument("name", nargs="?", help="scenario name (see --list)")
+    p.add_argument("name", nargs="?", help="scenario name (see --list), or 'random' for a scene drawn from the seed")
     p.add_argument("out_dir", nargs="?", type=Path)
     p.add_argument("--list", action="store_true", help="print the scenarios, one per line, name first")
     p.add_argument("--all", action="store_true", help="write every scenario into OUT_DIR/<name>/")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seeds", default=None, metavar="A-B",
+                   help="random: one scene per seed A..B (inclusive) into OUT_DIR/random-<seed>/")
+    p.add_argument("--targets", default=None, metavar="K|A-B",
+                   help="random: number of targets, or a range to draw it from (default drawn 1-3)")
+    p.add_argument("--size", default="320x240", metavar="WxH", help="random: frame size (default 320x240)")
+    p.add_argument("--frames", type=int, default=200, metavar="N", help="random: sequence length (default 200)")
+    p.add_argument("--ir16", action="store_true", help="random: write 16-bit infrared PNGs")
     p.add_argument("--force", action="store_true", help="overwrite existing sequence folders")
 
     p = sub.add_parser("bench", help="compare trackers on sequences: accuracy and speed on one core")
@@ -90,6 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="keep the run folders here (default: a temporary folder)")
     p.add_argument("--repeat", type=int, default=1, metavar="N",
                    help="time every run N times and keep the fastest (default 1)")
+    p.add_argument("--random", type=int, default=None, metavar="N",
+                   help="instead of sequences: N random scenes of the --split, and the distribution of the scores")
+    p.add_argument("--split", choices=("test", "dev"), default="test",
+                   help="random scenes: 'test' seeds (only ever scored, the default) or 'dev' seeds (for tuning)")
+    p.add_argument("--seeds", default=None, metavar="A-B", help="random scenes: these seeds instead of a split")
+    p.add_argument("--random-targets", default=None, metavar="K|A-B",
+                   help="random scenes: number of targets per scene (default drawn 1-3)")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
     p.add_argument("--config", type=Path)
     _add_open_options(p)
@@ -103,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ship-frames", action="store_true",
                    help="with --scheduler: send each sequence's files to the worker (default: workers read ROOT's path)")
     p.add_argument("--force", action="store_true", help="redo sequences whose run folder is complete")
-    p.add_argument("--protocol", choices=("default", "gtot", "rgbt234", "lasher"), default="default")
+    p.add_argument("--protocol", choices=PROTOCOLS, default="default")
     p.add_argument("--export", choices=("rgbt234", "gtot", "lasher"), default=None,
                    help="also write each tracker's results in that toolkit's per-sequence format")
     p.add_argument("--timeout", type=float, default=None, metavar="SECONDS", help="a sequence taking longer fails")
@@ -157,14 +172,63 @@ def _cmd_evaluate(a: argparse.Namespace) -> int:
     return 0
 
 
+def parse_size(text: str) -> tuple[int, int]:
+    """``WxH`` -> (W, H) in px."""
+    from pipeline.errors import InputError
+
+    w, sep, h = text.lower().partition("x")
+    if not sep or not w.isdigit() or not h.isdigit():
+        raise InputError(f"--size must be WxH in px, e.g. 320x240; got {text!r}")
+    return int(w), int(h)
+
+
+def _cmd_synth_random(a: argparse.Namespace) -> int:
+    from pipeline.errors import InputError
+    from pipeline.progress import Progress
+    from pipeline.synthetic import synthesize_random
+    from pipeline.synthetic.family import parse_seed_range, parse_target_count
+
+    if a.out_dir is None:
+        raise InputError("synth random needs OUT_DIR")
+    try:
+        targets = parse_target_count(a.targets)
+        seeds = parse_seed_range(a.seeds) if a.seeds is not None else None
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    size = parse_size(a.size)
+    if seeds is None:
+        path = synthesize_random(a.out_dir, a.seed, targets, size, a.frames, a.ir16, a.force)
+        print(f"wrote {path}")
+        return 0
+    with Progress(len(seeds), "synth random") as bar:
+        for seed in seeds:
+            synthesize_random(a.out_dir / random_folder_name(seed), seed, targets, size, a.frames, a.ir16, a.force,
+                              progress=False)
+            bar.update(1)
+    print(f"wrote {len(seeds)} random scenes (seeds {seeds.start}-{seeds.stop - 1}) into {a.out_dir}")
+    return 0
+
+
+def random_folder_name(seed: int) -> str:
+    """Folder name of a random scene in a set: ``random-0042``."""
+    return f"random-{seed:04d}"
+
+
 def _cmd_synth(a: argparse.Namespace) -> int:
     from pipeline.errors import InputError
     from pipeline.synthetic import SCENARIOS, synthesize
 
     if a.list:
+        print("random  a whole scene drawn from the seed: background, targets, paths, events, sensor (--seed, --seeds A-B)")
         for name, sc in SCENARIOS.items():
             print(f"{name}  {sc.description}")
         return 0
+    if a.seed < 0:
+        raise InputError(f"--seed must be a non-negative integer; got {a.seed}")
+    if a.name == "random":
+        return _cmd_synth_random(a)
+    if a.seeds is not None or a.targets is not None or a.ir16:
+        raise InputError("--seeds, --targets and --ir16 apply to 'synth random' only")
     if a.all:
         out = a.out_dir if a.out_dir is not None else (Path(a.name) if a.name else None)
         if out is None:
@@ -188,6 +252,21 @@ def _cmd_bench(a: argparse.Namespace) -> int:
     from pipeline.errors import InputError
 
     trackers = [t.strip() for t in (a.trackers or "").split(",") if t.strip()] or None
+    if a.random is not None or a.seeds is not None:
+        from pipeline.bench import format_distribution, run_random_bench
+        from pipeline.synthetic.family import parse_seed_range, parse_target_count
+
+        if a.seq_dirs or a.targets:
+            raise InputError("bench --random/--seeds runs on generated scenes: give no sequence folders or --targets")
+        try:
+            seeds = parse_seed_range(a.seeds) if a.seeds is not None else None
+            targets = parse_target_count(a.random_targets)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        res = run_random_bench(a.random, a.split, seeds, targets, trackers, out=a.out, json_path=a.json, sets=a.set,
+                               config_path=a.config, repeat=a.repeat)
+        print(format_distribution(res))
+        return 0
     if a.targets:
         from pipeline.bench import format_scaling, run_scaling
 

@@ -70,3 +70,31 @@ def test_bench_targets_rejects_unknown_counts(capsys):
     assert "no scene with 3 targets" in err and "\n" == err[-1] and err.count("\n") == 1
     assert main(["bench"]) == 1
     assert "needs sequence folders" in capsys.readouterr().err
+
+
+def test_bench_random_prints_the_distribution_and_attributes(tmp_path, capsys):
+    from pipeline.bench import format_distribution, run_random_bench
+
+    res = run_random_bench(seeds=range(1, 3), trackers=["meanshift"], out=tmp_path, json_path=tmp_path / "r.json")
+    d = res["distribution"]["meanshift"]
+    p20 = [r["p20"] for r in res["rows"]]
+    assert d["scenes"] == 2 and res["seeds"] == [1, 2]
+    assert abs(d["p20"]["mean"] - sum(p20) / 2) < 1e-12 and d["p20"]["worst"] == min(p20)
+    assert d["p20"]["worst_seed"] == res["rows"][p20.index(min(p20))]["seed"]
+    assert res["attributes"]["meanshift"], "per-attribute scores from the scenes' frame flags"
+    text = format_distribution(res)
+    assert "| meanshift | 2 |" in text and "P@20 / AUC over the frames with each attribute" in text
+    assert json.loads((tmp_path / "r.json").read_text())["seeds"] == [1, 2]
+    # a second run reuses the generated scenes
+    before = (tmp_path / "scenes" / "random-0001" / "visible" / "00001v.jpg").stat().st_mtime_ns
+    run_random_bench(seeds=range(1, 2), trackers=["meanshift"], out=tmp_path)
+    assert (tmp_path / "scenes" / "random-0001" / "visible" / "00001v.jpg").stat().st_mtime_ns == before
+
+
+def test_bench_random_rejects_bad_options(capsys):
+    from pipeline.cli import main
+
+    assert main(["bench", "--random", "0"]) == 1
+    assert "--random takes a number of scenes >= 1" in capsys.readouterr().err
+    assert main(["bench", "--seeds", "4-2"]) == 1
+    assert "seeds must be N or A-B" in capsys.readouterr().err

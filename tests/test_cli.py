@@ -189,3 +189,26 @@ def test_ctrl_c_leaves_valid_outputs(tmp_path):
     assert verify.returncode == 0, verify.stderr
     store = open_store(out / "run.rrd")
     assert boxes_at(store, "/visible/targets", n) is not None
+
+
+def test_synth_random_one_and_a_set(tmp_path, capsys):
+    rc, out, _ = _run(["synth", "random", tmp_path / "one", "--seed", "4", "--frames", "30"], capsys)
+    assert rc == 0 and (tmp_path / "one" / "scene.json").is_file()
+    rc, out, _ = _run(["synth", "random", tmp_path / "set", "--seeds", "5-6", "--frames", "30", "--targets", "2"], capsys)
+    assert rc == 0 and sorted(p.name for p in (tmp_path / "set").iterdir()) == ["random-0005", "random-0006"]
+    assert len(json.loads((tmp_path / "set" / "random-0005" / "scene.json").read_text())["targets"]) == 2
+    for argv, match in ((["synth", "random", tmp_path / "x", "--seed", "-1"], "non-negative"),
+                        (["synth", "random", tmp_path / "x", "--targets", "9"], "--targets"),
+                        (["synth", "random", tmp_path / "x", "--size", "big"], "--size"),
+                        (["synth", "crossing2", tmp_path / "x", "--seeds", "1-2"], "synth random")):
+        rc, _, err = _run(argv, capsys)
+        _assert_one_line_error(rc, err, match)
+
+
+def test_visible_only_rgbt234_folder_runs(tmp_path, capsys):
+    write_frames(tmp_path / "s" / "visible", 8)
+    write_boxes(tmp_path / "s" / "visible.txt", 8)
+    rc, out, err = _run(["track", tmp_path / "s", "--out", tmp_path / "run", "--no-rrd"], capsys)
+    assert rc == 0, err
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert s["channels"] == ["visible"] and s["frames"] == 8 and s["metrics"]["p20"] == 1.0
