@@ -51,7 +51,7 @@ class BatchOptions:
 
     ``workers``: parallel sequences on this machine, default one per core; ``scheduler``:
     ``tcp://HOST:PORT`` of a Dask scheduler (then ``workers`` is ignored); ``protocol``:
-    ``default|gtot|rgbt234|lasher`` for every run and for the report's aggregation;
+    ``default|gtot|rgbt234|lasher|vtuav`` for every run and for the report's aggregation;
     ``export``: also write results in that toolkit's format; ``ship_frames``: with a
     scheduler, send each sequence's files to the worker instead of reading a shared path;
     ``timeout_s``: a sequence taking longer fails (None: no limit).
@@ -360,8 +360,10 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
     from pipeline.progress import Progress
     from pipeline.sinks.report import write_report
 
-    if opts.protocol not in ("default", "gtot", "rgbt234", "lasher"):
-        raise InputError(f"--protocol must be default, gtot, rgbt234 or lasher; got {opts.protocol!r}")
+    from pipeline.eval.protocols import PROTOCOLS
+
+    if opts.protocol not in PROTOCOLS:
+        raise InputError(f"--protocol must be one of {', '.join(PROTOCOLS)}; got {opts.protocol!r}")
     if opts.export not in (None, "gtot", "rgbt234", "lasher"):
         raise InputError(f"--export must be gtot, rgbt234 or lasher; got {opts.export!r}")
     if opts.workers is not None and opts.workers < 1:

@@ -7,7 +7,7 @@
   one truth there is; ``mpr`` and ``msr`` when both channels have truth; with several
   targets also ``mota``, ``motp``, ``idf1``, ``id_switches``, ``purity``, ``hota``;
   ``targets``: ``{"<id>": same per-target keys}``;
-* ``protocol="gtot" | "rgbt234" | "lasher"``: the toolkit's own keys and rules
+* ``protocol="gtot" | "rgbt234" | "lasher" | "vtuav"``: the toolkit's own keys and rules
   (``pipeline.eval.protocols``), per target and averaged.
 
 Which track is scored against which truth id (``id_rule``): ``truth`` - the track carrying the

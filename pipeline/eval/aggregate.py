@@ -1,6 +1,6 @@
 """Benchmark-level scores from per-sequence results, in each benchmark's own terms.
 
-* ``default`` and ``rgbt234`` and ``lasher``: the mean over sequences of each sequence's
+* ``default``, ``rgbt234``, ``vtuav`` and ``lasher``: the mean over sequences of each sequence's
   score (RGBT234 and LasHeR average sequences);
 * ``gtot``: frames pooled over the whole benchmark (the GTOT toolkit's rule): the per-
   threshold hit counts of every sequence are summed, then turned into MPR@5 and MSR.
@@ -26,6 +26,7 @@ from pipeline.io.sequence import open_sequence
 SCORE_KEYS = {
     "default": ("p5", "p20", "auc", "mpr", "msr", "npr"),
     "rgbt234": ("mpr", "msr"),
+    "vtuav": ("mpr", "msr"),
     "gtot": ("mpr", "msr"),
     "lasher": ("pr", "npr", "sr"),
 }

@@ -13,6 +13,13 @@ Read from the toolkits' code (GTOT-toolkit ``calcPlotErr.m``/``main_drawResult.m
     integrated with the toolkit's ``auc.m`` (a trapezoid). Frames are pooled over the
     whole benchmark (not averaged per sequence): :func:`gtot_counts` returns the counts
     to pool, :func:`gtot_from_counts` turns pooled counts into scores.
+``vtuav``
+    The DUT-VTUAV toolkit (``calcPlotErr_TPR.m``, ``plot_ST.m``): only the annotated
+    frames are scored (every 10th, ``results(1:10:end)``; the reader leaves the frames
+    between without truth); per frame the smaller centre error and the larger IoU of
+    the visible and infrared truth; MPR at 20 px with ``<=``, MSR the mean of the success
+    rates at ``IoU > t`` for ``t = 0:0.05:1``; averaged per sequence. Its pixel-inclusive
+    IoU (``calcRectInt.m``) equals our continuous one.
 ``lasher``
     Scored against the visible truth only; frame 1 is replaced by the truth; a result
     box with ``w <= 0`` or ``h <= 0`` (or none) is replaced by the previous one; a frame
@@ -32,7 +39,7 @@ import numpy as np
 
 from pipeline.eval.single import center_errors, iou_rows, ious, normalized_center_errors
 
-PROTOCOLS = ("default", "gtot", "rgbt234", "lasher")
+PROTOCOLS = ("default", "gtot", "rgbt234", "lasher", "vtuav")
 
 
 def _both(gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -43,7 +50,7 @@ def _both(gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> tuple[np.ndarr
 
 
 def rgbt234(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
-    """MPR@20 and MSR of one sequence by the RGBT234 toolkit's rules."""
+    """MPR@20 and MSR of one sequence by the RGBT234 toolkit's rules (frames without truth skipped)."""
     gv, gi = _both(gt_vis, gt_ir)
     err = np.fmin(center_errors(pred, gv), center_errors(pred, gi))
     ov = np.fmax(ious(pred, gv), ious(pred, gi))
@@ -129,4 +136,13 @@ def lasher(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
     }
 
 
-PROTOCOL_FUNCTIONS = {"gtot": gtot, "rgbt234": rgbt234, "lasher": lasher}
+def vtuav(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
+    """MPR@20 and MSR of one sequence by the DUT-VTUAV toolkit's rules: the annotated frames only.
+
+    The rules are RGBT234's (module doc) applied to the frames that have truth, so the
+    score is :func:`rgbt234`'s; it is its own protocol so that a VTUAV benchmark is named
+    and aggregated as one."""
+    return rgbt234(pred, gt_vis, gt_ir)
+
+
+PROTOCOL_FUNCTIONS = {"gtot": gtot, "rgbt234": rgbt234, "lasher": lasher, "vtuav": vtuav}

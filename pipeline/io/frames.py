@@ -50,10 +50,17 @@ def list_images(folder: Path) -> list[Path]:
 
 
 class ImageListSource:
-    """Frames stored as one image file each."""
+    """Frames stored as one image file each.
 
-    def __init__(self, paths: list[Path]):
+    ``grey`` (set for an infrared channel) decodes JPEG files straight to their luminance:
+    a thermal JPEG stored as three equal channels costs a third less to decode that way,
+    and the trackers see the same grey levels. Other formats are read as stored (16-bit
+    PNG/TIFF stay 16-bit).
+    """
+
+    def __init__(self, paths: list[Path], grey: bool = False):
         self.paths = paths
+        self.grey = grey
 
     def __len__(self) -> int:
         return len(self.paths)
@@ -69,7 +76,8 @@ class ImageListSource:
             data = path.read_bytes()
         except OSError as exc:
             raise InputError(f"cannot read frame {index0 + 1}: {path}: {exc.strerror}") from None
-        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        flag = cv2.IMREAD_GRAYSCALE if self.grey and path.suffix.lower() in (".jpg", ".jpeg") else cv2.IMREAD_UNCHANGED
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
         if image is None or image.size == 0:
             raise InputError(f"unreadable frame {index0 + 1}: {path} is not a decodable image")
         if image.ndim == 3 and image.shape[2] == 4:

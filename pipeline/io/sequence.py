@@ -8,7 +8,7 @@ layout         visible            infrared            ground truth              
 rgbt234        ``visible/``       ``infrared/``       ``visible.txt``, ``infrared.txt``     0
 gtot           ``v/``             ``i/``              ``groundTruth_v.txt``/``_i`` x1y1x2y2 0
 vot-rgbt       ``color/``         ``ir/``             ``groundtruth.txt`` (box or polygon)  0
-vtuav          ``rgb/``           ``ir/``             ``rgb.txt``/``ir.txt`` x1y1x2y2 /10   0
+vtuav          ``rgb/``           ``ir/``             ``rgb.txt``/``ir.txt`` xywh every 10  0
 video-pair     ``visible.<ext>``  ``infrared.<ext>``  any of the above files if present     0
 otb            ``img/`` (colour)  ``img/`` (grey)     ``groundtruth_rect.txt``              1
 mot            ``img1/``          ``img1/``           ``gt/gt.txt``                         1
@@ -16,7 +16,12 @@ vot            frames in folder   frames in folder    ``groundtruth.txt``       
 =============  =================  ==================  ====================================  ====
 
 "base" is the coordinate the file gives the first pixel's corner; it is subtracted on
-the way in (override with ``gt_base``). A MOTChallenge ``gt.txt`` (or ``gt/gt.txt``)
+the way in (override with ``gt_base``). VTUAV annotates every 10th frame (frames 1, 11,
+21, ... here): the frames between have no truth and are not scored.
+
+A two-channel layout with only one of its halves (``visible/`` + ``visible.txt`` alone,
+say) is a one-channel sequence of the channel its folder names; where the folder name
+fits two layouts (``ir/``), the layout whose truth file is there is chosen. A MOTChallenge ``gt.txt`` (or ``gt/gt.txt``)
 beside the frames takes precedence over the single-target files (its base is 1).
 
 Channels of a one-channel folder are decided from the first frame (grey = infrared,
@@ -149,7 +154,7 @@ _PAIR_LAYOUTS = (
     _Spec("rgbt234", "visible", "infrared", {"visible": ("visible.txt", "xywh"), "infrared": ("infrared.txt", "xywh")}),
     _Spec("gtot", "v", "i", {"visible": ("groundTruth_v.txt", "xyxy"), "infrared": ("groundTruth_i.txt", "xyxy")}),
     _Spec("vot-rgbt", "color", "ir", {"both": ("groundtruth.txt", "xywh")}),
-    _Spec("vtuav", "rgb", "ir", {"visible": ("rgb.txt", "xyxy"), "infrared": ("ir.txt", "xyxy")}, sparse_every=10),
+    _Spec("vtuav", "rgb", "ir", {"visible": ("rgb.txt", "xywh"), "infrared": ("ir.txt", "xywh")}, sparse_every=10),
 )
 _ONE_CHANNEL_LAYOUTS = (
     _Spec("otb", "img", "img", {"both": ("groundtruth_rect.txt", "xywh")}, base=1.0),
@@ -277,11 +282,11 @@ def _find_video(root: Path, stem: str) -> Path | None:
     return None
 
 
-def _images_or_error(folder: Path, channel: str) -> ImageListSource:
+def _images_or_error(folder: Path, channel: str, grey: bool = False) -> ImageListSource:
     paths = list_images(folder)
     if not paths:
         raise InputError(f"empty sequence: no {channel} frames ({', '.join(IMAGE_EXTENSIONS)}) in {folder}")
-    return ImageListSource(paths)
+    return ImageListSource(paths, grey=grey)
 
 
 def _find_mot_gt(root: Path, frames_dir: Path | None) -> Path | None:
@@ -293,6 +298,23 @@ def _find_mot_gt(root: Path, frames_dir: Path | None) -> Path | None:
             if cand.is_file():
                 return cand
     return None
+
+
+def _one_half(root: Path) -> tuple[_Spec, str, Path] | None:
+    """A two-channel layout of which only one channel's folder holds frames: (layout, channel, folder)."""
+    found: list[tuple[_Spec, str, Path]] = []
+    for s in _PAIR_LAYOUTS:
+        for ch, name in (("visible", s.visible), ("infrared", s.infrared)):
+            d = _find_dir(root, name or "")
+            if d is not None and list_images(d):
+                found.append((s, ch, d))
+    if not found:
+        return None
+    for s, ch, d in found:  # the layout whose truth file for that channel is there
+        fname = s.gt.get(ch, s.gt.get("both", ("", "")))[0]
+        if fname and (root / fname).is_file():
+            return s, ch, d
+    return found[0]
 
 
 def sequence_layout(path: str | Path) -> str | None:
@@ -308,6 +330,9 @@ def sequence_layout(path: str | Path) -> str | None:
             return s.name
     if _find_video(root, "visible") is not None and _find_video(root, "infrared") is not None:
         return "video-pair"
+    half = _one_half(root)
+    if half is not None:
+        return half[0].name
     for s in _ONE_CHANNEL_LAYOUTS:
         d = _find_dir(root, s.visible or "")
         if d is not None and list_images(d):
@@ -360,7 +385,7 @@ def open_sequence(
         vd, idir = _find_dir(root, s.visible or ""), _find_dir(root, s.infrared or "")
         if vd is not None and idir is not None:
             spec = s
-            sources = {"visible": _images_or_error(vd, "visible"), "infrared": _images_or_error(idir, "infrared")}
+            sources = {"visible": _images_or_error(vd, "visible"), "infrared": _images_or_error(idir, "infrared", grey=True)}
             frames_dir = vd
             break
     if spec is None:
@@ -368,6 +393,13 @@ def open_sequence(
         if vv is not None and iv is not None:
             spec = _Spec("video-pair", None, None, {})
             sources = {"visible": VideoSource(vv), "infrared": VideoSource(iv)}
+    if spec is None:
+        half = _one_half(root)
+        if half is not None:
+            spec, found_ch, frames_dir = half
+            if channel is not None and channel != found_ch:
+                raise InputError(f"--channel {channel}: {root} holds only {found_ch} frames ({frames_dir})")
+            sources = {found_ch: ImageListSource(list_images(frames_dir), grey=found_ch == "infrared")}
     if spec is None:
         for s in _ONE_CHANNEL_LAYOUTS:
             d = _find_dir(root, s.visible or "")
@@ -378,6 +410,7 @@ def open_sequence(
                     channel_found = "infrared" if is_grey(src.read(0).image) else "visible"
                 else:
                     channel_found = channel
+                src.grey = channel_found == "infrared"
                 sources = {channel_found: src}
                 break
     if spec is None:

@@ -28,7 +28,8 @@ from pipeline.eval import json_safe
 from pipeline.eval.aggregate import SCORE_KEYS, aggregate, sequence_curves
 from pipeline.io.attributes import read_root_table, sequence_attributes
 
-HEADLINE = {"default": ("p20", "auc"), "rgbt234": ("mpr", "msr"), "gtot": ("mpr", "msr"), "lasher": ("pr", "npr", "sr")}
+HEADLINE = {"default": ("p20", "auc"), "rgbt234": ("mpr", "msr"), "vtuav": ("mpr", "msr"), "gtot": ("mpr", "msr"),
+            "lasher": ("pr", "npr", "sr")}
 LABEL = {"p5": "P@5", "p20": "P@20", "auc": "AUC", "mpr": "MPR", "msr": "MSR", "npr": "NPR", "pr": "PR", "sr": "SR",
          "mota": "MOTA", "idf1": "IDF1", "hota": "HOTA", "purity": "purity", "id_switches": "ID sw."}
 

@@ -55,3 +55,19 @@ def test_rgbt234_min_error_max_iou():
     assert protocols.rgbt234(pred, gv, gv)["mpr"] == 0.0
     r2 = protocols.rgbt234(np.array([[30, 0, 10, 10], [0, 0, 10, 10]], float), gv, gi)
     assert r2["msr"] == pytest.approx(20 / 21)
+
+
+def test_vtuav_scores_the_annotated_frames_only():
+    """By hand: truth on frames 1 and 11 only (VTUAV's every 10th); frame 1 hits through the IR truth with
+    IoU 1 there, frame 11 is 25 px off (IoU 0); the frames between are not scored whatever the box."""
+    n = 12
+    gv, gi = np.full((n, 4), np.nan), np.full((n, 4), np.nan)
+    gv[0], gi[0] = [0, 0, 10, 10], [30, 0, 10, 10]
+    gv[10], gi[10] = [0, 0, 10, 10], [0, 0, 10, 10]
+    pred = np.full((n, 4), 500.0)
+    pred[0], pred[10] = [30, 0, 10, 10], [25, 0, 10, 10]
+    r = protocols.vtuav(pred, gv, gi)
+    assert r["frames"] == 2
+    assert r["mpr"] == pytest.approx(0.5)
+    assert r["msr"] == pytest.approx((20 / 21 + 0) / 2)  # success at IoU > t: frame 1 for t < 1, frame 11 never
+    assert "vtuav" in protocols.PROTOCOLS

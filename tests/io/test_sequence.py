@@ -43,7 +43,7 @@ def _vot_rgbt(root):
 def _vtuav(root):
     write_frames(root / "rgb", 25)
     write_frames(root / "ir", 25, color=False)
-    rows = [f"{10 + i} 10 {20 + i} 20" for i in (0, 10, 20)]  # every 10th frame
+    rows = [f"{10 + i} 10 10 10" for i in (0, 10, 20)]  # x y w h, every 10th frame (VTUAV)
     (root / "rgb.txt").write_text("\n".join(rows) + "\n")
     (root / "ir.txt").write_text("\n".join(rows) + "\n")
     return root
@@ -233,3 +233,41 @@ def test_malformed_truth_names_file_and_line(tmp_path):
     (root / "visible.txt").write_text("10,10,10,10\n11,10,10\n")
     with pytest.raises(InputError, match=r"visible.txt:2: malformed ground truth"):
         open_sequence(root)
+
+
+@pytest.mark.parametrize("half, channel", [("visible", "visible"), ("infrared", "infrared")])
+def test_one_half_of_a_two_channel_layout_is_a_one_channel_sequence(tmp_path, half, channel):
+    root = _rgbt234(tmp_path / "s")
+    other = "infrared" if half == "visible" else "visible"
+    import shutil
+
+    shutil.rmtree(root / other)
+    (root / f"{other}.txt").unlink()
+    seq = open_sequence(root)
+    assert seq.layout == "rgbt234" and seq.channels == (channel,)
+    np.testing.assert_allclose(seq.truth.primary()[1][0], TRUTH0)
+    with pytest.raises(InputError, match=f"holds only {channel} frames"):
+        open_sequence(root, channel=other)
+
+
+def test_ir_folder_alone_is_read_by_the_layout_whose_truth_is_there(tmp_path):
+    root = _vtuav(tmp_path / "s")
+    import shutil
+
+    shutil.rmtree(root / "rgb")
+    (root / "rgb.txt").unlink()
+    seq = open_sequence(root)
+    assert seq.layout == "vtuav" and seq.channels == ("infrared",)
+    assert np.isnan(seq.truth.primary()[1][1]).all()  # sparse truth: frame 2 has none
+
+
+def test_vtuav_bus1_reads_its_boxes_every_tenth_frame(realdata):
+    seq = open_sequence(realdata / "vtuav-bus1")
+    assert seq.layout == "vtuav" and seq.channels == ("visible", "infrared") and (seq.width, seq.height) == (1920, 1080)
+    vis, ir = seq.truth.boxes["visible"][1], seq.truth.boxes["infrared"][1]
+    annotated = np.nonzero(~np.isnan(vis[:, 0]))[0] + 1
+    assert annotated.tolist() == list(range(1, 102, 10))
+    np.testing.assert_allclose(vis[0], [585, 94, 66, 83])  # rgb.txt row 1, "x y w h"
+    np.testing.assert_allclose(vis[100], [621, 170, 69, 96])
+    np.testing.assert_allclose(ir[10], [587, 106, 67, 68])
+    assert resolve_init(seq)[0].box == BBox(585, 94, 66, 83)
