@@ -60,6 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("tracks_csv", type=Path)
     p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     p.add_argument("--protocol", choices=PROTOCOLS, default="default")
+    p.add_argument("--mot-rule", choices=("trackeval", "motmetrics"), default="trackeval",
+                   help="CLEAR matching of the many-target scores: TrackEval's (the MOTChallenge numbers) or "
+                        "py-motmetrics' (a match carried across gaps)")
     p.add_argument("--ids", choices=("auto", "truth", "assign"), default="auto",
                    help="score each truth id against the track with its id (truth), the IDF1 assignment's track "
                         "(assign, for detection-made ids), or truth when every track id is a truth id (auto)")
@@ -119,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --scheduler: send each sequence's files to the worker (default: workers read ROOT's path)")
     p.add_argument("--force", action="store_true", help="redo sequences whose run folder is complete")
     p.add_argument("--protocol", choices=PROTOCOLS, default="default")
-    p.add_argument("--export", choices=("rgbt234", "gtot", "lasher"), default=None,
+    p.add_argument("--export", choices=("rgbt234", "gtot", "lasher", "vtuav"), default=None,
                    help="also write each tracker's results in that toolkit's per-sequence format")
     p.add_argument("--timeout", type=float, default=None, metavar="SECONDS", help="a sequence taking longer fails")
     p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd per sequence")
@@ -161,7 +164,8 @@ def _cmd_evaluate(a: argparse.Namespace) -> int:
 
     from pipeline.eval import evaluate_files
 
-    m = evaluate_files(a.seq_dir, a.tracks_csv, a.protocol, a.ids, channel=a.channel, align=a.align, gt_base=a.gt_base)
+    m = evaluate_files(a.seq_dir, a.tracks_csv, a.protocol, a.ids, a.mot_rule, channel=a.channel, align=a.align,
+                       gt_base=a.gt_base)
     if a.json:
         print(json.dumps(m))
         return 0

@@ -103,9 +103,10 @@ class BBox:
         return BBox(x1, y1, max(x2 - x1, 0.0), max(y2 - y1, 0.0))
 
     def iou(self, other: BBox) -> float:
+        """Intersection over union, in [0, 1]."""
         inter = self.intersect(other).area
         union = self.area + other.area - inter
-        return inter / union if union > 0 else 0.0
+        return min(max(inter / union, 0.0), 1.0) if union > 0 else 0.0
 
     def clip(self, width: int, height: int) -> BBox:
         """The part of the box inside a ``width`` x ``height`` frame (may be empty)."""
@@ -228,6 +229,29 @@ class TargetResult:
 
     def replace(self, **changes: object) -> TargetResult:
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+
+class TruthMatch(enum.StrEnum):
+    """How a target's output compares with its truth in one frame (the .rrd's ``targets/<id>/truth``)."""
+
+    OVERLAP = "overlap"  # the output box overlaps the truth (IoU > 0)
+    FAILURE = "failure"  # truth exists, but there is no output or it does not overlap (IoU 0)
+    NO_TRUTH = "no-truth"  # no truth in this frame (not scored)
+
+
+@dataclass(frozen=True)
+class FrameTruth:
+    """The ground truth of one frame and how the tracker's output scores against it (for the recording).
+
+    ``boxes[channel][id]`` are the truth boxes; ``center_error_px``, ``iou`` and ``match`` are per
+    target id that has both an output and truth this frame (``inf`` / 0 / failure when the
+    target is not reported).
+    """
+
+    boxes: Mapping[str, Mapping[int, BBox]]
+    center_error_px: Mapping[int, float] = field(default_factory=dict)
+    iou: Mapping[int, float] = field(default_factory=dict)
+    match: Mapping[int, TruthMatch] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

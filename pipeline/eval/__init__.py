@@ -52,10 +52,19 @@ def track_for_truth(truth_ids: list[int], tracks: TrackTable, mapping: dict[int,
 
 
 def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "default",
-             id_rule: str = "auto") -> dict[str, object]:
-    """Score ``tracks`` against ``truth`` (see the module doc for the keys)."""
+             id_rule: str = "auto", mot_rule: str = "trackeval", multi: bool | None = None) -> dict[str, object]:
+    """Score ``tracks`` against ``truth`` (see the module doc for the keys).
+
+    ``multi`` asks for the many-target scores (MOTA, IDF1, HOTA, purity, ...) even for one
+    target and one track; by default they come with several targets or tracks.
+
+    ``mot_rule`` is the CLEAR matching rule of the many-target scores: ``trackeval`` (the
+    MOTChallenge numbers, default) or ``motmetrics`` (py-motmetrics'; ``pipeline.eval.mot``).
+    """
     if protocol not in protocols.PROTOCOLS:
         raise ValueError(f"protocol must be one of {protocols.PROTOCOLS}; got {protocol!r}")
+    if mot_rule not in mot.MATCH_RULES:
+        raise ValueError(f"mot_rule must be one of {mot.MATCH_RULES}; got {mot_rule!r}")
     ch = truth.primary_channel()
     if ch is None:
         raise ValueError("the sequence has no ground truth")
@@ -63,8 +72,10 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
     other_ch = "infrared" if ch == "visible" else "visible"
     gt_other = truth.boxes.get(other_ch) if not truth.multi else None
     ids = list(gt)
-    multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
-    id_info = mot.idf1(gt, tracks.boxes) if tracks.boxes else {"idf1": 0.0, "mapping": {}}
+    if multi is None:
+        multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
+    data = mot.sequence_data(gt, tracks.boxes, n_frames)
+    id_info = mot.idf1(gt, tracks.boxes, data=data) if tracks.boxes else {"idf1": 0.0, "mapping": {}}
     which = track_for_truth(ids, tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]
     empty = np.full((n_frames, 4), np.nan)
 
@@ -96,11 +107,13 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
             out[k] = _mean([per[str(g)].get(k, float("nan")) for g in ids])
     out["frames"] = int(sum(p.get("frames", 0) for p in per.values()))
     if multi:
-        fm = mot.match_frames(gt, tracks.boxes, n_frames)
+        fm = mot.match_frames(gt, tracks.boxes, n_frames, rule=mot_rule, data=data)
         out.update({k: v for k, v in mot.clear_mot(fm).items()})
+        out["mot_rule"] = mot_rule
         out["idf1"] = id_info["idf1"]
+        out["idp"], out["idr"] = id_info["idp"], id_info["idr"]
         out["purity"] = mot.purity_matrix(gt, tracks.boxes, fm)
-        out.update(mot.hota(gt, tracks.boxes, n_frames))
+        out.update(mot.hota(gt, tracks.boxes, n_frames, data=data))
     out["targets"] = per
     return json_safe(out)  # type: ignore[return-value]
 
@@ -119,7 +132,7 @@ def json_safe(x: object) -> object:
 
 
 def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = "default", id_rule: str = "auto",
-                   **open_kw: object) -> dict[str, object]:
+                   mot_rule: str = "trackeval", **open_kw: object) -> dict[str, object]:
     """``dualtrack evaluate SEQ_DIR TRACKS_CSV``: open the sequence, read the results, score."""
     seq = open_sequence(seq_dir, **open_kw)  # type: ignore[arg-type]
     if not seq.truth.has_truth:
@@ -127,7 +140,7 @@ def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = 
 
         raise InputError(f"{seq.path} has no ground truth to evaluate against")
     tracks = read_tracks(tracks_csv, seq.n_frames)
-    return evaluate(seq.truth, tracks, seq.n_frames, protocol, id_rule)
+    return evaluate(seq.truth, tracks, seq.n_frames, protocol, id_rule, mot_rule)
 
 
 def curves(truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto") -> dict[int, dict[str, np.ndarray]]:

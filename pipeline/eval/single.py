@@ -40,7 +40,10 @@ def normalized_center_errors(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
 
 
 def iou_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise IoU of two ``(N, 4)`` box arrays (continuous boxes; 0 where either is NaN)."""
+    """Row-wise IoU of two ``(N, 4)`` box arrays (continuous boxes; 0 where either is NaN), in [0, 1].
+
+    The clip matters at the top: rounding can put identical boxes at 1 + 3e-15, which the
+    success threshold ``IoU > 1`` would count."""
     x1 = np.maximum(a[:, 0], b[:, 0])
     y1 = np.maximum(a[:, 1], b[:, 1])
     x2 = np.minimum(a[:, 0] + a[:, 2], b[:, 0] + b[:, 2])
@@ -49,7 +52,7 @@ def iou_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     union = a[:, 2] * a[:, 3] + b[:, 2] * b[:, 3] - inter
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(union > 0, inter / union, 0.0)
-    return np.nan_to_num(out, nan=0.0)
+    return np.clip(np.nan_to_num(out, nan=0.0), 0.0, 1.0)
 
 
 def ious(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
@@ -60,7 +63,7 @@ def ious(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
 
 
 def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(n, m)`` IoU between the rows of ``a`` (n, 4) and ``b`` (m, 4)."""
+    """``(n, m)`` IoU between the rows of ``a`` (n, 4) and ``b`` (m, 4), in [0, 1]."""
     if a.shape[0] == 0 or b.shape[0] == 0:
         return np.zeros((a.shape[0], b.shape[0]))
     ax1, ay1 = a[:, 0:1], a[:, 1:2]
@@ -72,7 +75,7 @@ def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     inter = iw * ih
     union = (a[:, 2] * a[:, 3])[:, None] + (b[:, 2] * b[:, 3])[None, :] - inter
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(union > 0, inter / union, 0.0)
+        return np.clip(np.where(union > 0, inter / union, 0.0), 0.0, 1.0)
 
 
 def precision_curve(errors: np.ndarray, thresholds: np.ndarray = PRECISION_THRESHOLDS_PX) -> np.ndarray:
