@@ -25,6 +25,8 @@ import numpy as np
 from pipeline.errors import InputError
 
 _SPLIT = re.compile(r"[,\s;]+")
+MOT_BASE = 1.0
+"""Coordinate of the first pixel's corner in MOTChallenge files (``gt.txt``, ``det.txt``, ``tracks.csv``)."""
 
 
 def _numbers(path: Path, lineno: int, line: str) -> list[float]:

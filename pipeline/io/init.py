@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import InputError
-from pipeline.io.groundtruth import parse_box_file, parse_mot_rows
+from pipeline.io.groundtruth import MOT_BASE, parse_box_file, parse_mot_rows
 from pipeline.io.sequence import Sequence
 from pipeline.types import BBox, InitTarget
 
@@ -43,7 +43,7 @@ def read_init_file(path: Path) -> list[InitTarget]:
     first = next((ln for ln in path.read_text().splitlines() if ln.strip()), "")
     n_cols = len([p for p in first.replace(",", " ").split() if p])
     if n_cols >= 6:
-        rows = parse_mot_rows(path, base=0.0)
+        rows = parse_mot_rows(path, base=MOT_BASE)  # MOTChallenge rows are 1-based
         out = [InitTarget(tid, BBox(*box)) for frame, tid, box, _flag, _vis in rows if frame == 1]
         if not out:
             raise InputError(f"{path}: no MOT rows for frame 1")

@@ -1,7 +1,8 @@
 """Reading tracker results back: our ``tracks.csv`` or a per-frame box file.
 
-``tracks.csv`` holds MOTChallenge rows ``frame,id,x,y,w,h,conf,-1,-1,-1`` in the 0-based
-continuous convention. A file of one ``x,y,w,h`` (or 8-value polygon) per line, as the
+``tracks.csv`` holds MOTChallenge rows ``frame,id,x,y,w,h,conf,-1,-1,-1``, 1-based as
+MOTChallenge files are (the ``gt.txt`` beside it is too), so TrackEval and py-motmetrics read a
+run folder as it is; they are read back into the 0-based continuous convention. A file of one ``x,y,w,h`` (or 8-value polygon) per line, as the
 single-object toolkits write, is read as target 1, line k = frame k; a row of zeros or
 NaN means no output in that frame.
 """
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import InputError
-from pipeline.io.groundtruth import parse_box_file, parse_mot_rows
+from pipeline.io.groundtruth import MOT_BASE, parse_box_file, parse_mot_rows
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,7 @@ def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
         return TrackTable({1: boxes}, {1: np.where(np.isnan(boxes[:, 0]), np.nan, 1.0)})
     boxes_d: dict[int, np.ndarray] = {}
     conf_d: dict[int, np.ndarray] = {}
-    for frame, tid, box, conf, _vis in parse_mot_rows(p, base=0.0):
+    for frame, tid, box, conf, _vis in parse_mot_rows(p, base=MOT_BASE):
         if frame > n_frames:
             raise InputError(f"{p}: row for frame {frame} but the sequence has {n_frames} frames")
         if tid not in boxes_d:

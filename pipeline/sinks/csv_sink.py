@@ -5,7 +5,9 @@ both files valid for the frames done.
 
 ``tracks.csv``: no header; ``frame,id,x,y,w,h,conf,-1,-1,-1`` per target per frame while
 the target is tracked or occluded (``conf`` lower when occluded); no row once it is lost
-(and none while tentative).
+(and none while tentative). Its boxes are 1-based, as MOTChallenge files are (the ``gt.txt``
+the project writes and reads is too), so TrackEval and py-motmetrics score a run folder as
+it is; ``targets.csv`` keeps the 0-based continuous convention of the rest of dualtrack.
 
 ``targets.csv``: header; ``frame,id,status,x_px,y_px,w_px,h_px,source,iterations,rho,
 model_update,diagnostics`` for every target every frame. ``iterations`` lists the
@@ -20,6 +22,7 @@ import math
 from pathlib import Path
 from types import TracebackType
 
+from pipeline.io.groundtruth import MOT_BASE
 from pipeline.types import FrameResult
 
 TARGETS_HEADER = (
@@ -58,7 +61,8 @@ class CsvSink:
         for t in result.targets:
             b = t.box
             if t.status.is_reported:
-                self._tw.writerow([f, t.id, _num(b.x), _num(b.y), _num(b.w), _num(b.h), f"{t.confidence:.3f}", -1, -1, -1])
+                self._tw.writerow([f, t.id, _num(b.x + MOT_BASE), _num(b.y + MOT_BASE), _num(b.w), _num(b.h),
+                                   f"{t.confidence:.3f}", -1, -1, -1])
             self._gw.writerow([
                 f, t.id, t.status.value, _num(b.x), _num(b.y), _num(b.w), _num(b.h), t.source,
                 _pairs(t.iterations), _num(t.rho) if not math.isnan(t.rho) else "", t.model_update,

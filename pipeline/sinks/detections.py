@@ -1,7 +1,7 @@
 """Outputs of ``dualtrack detect``: ``det.txt``, ``rois.csv`` and ``detections.rrd``.
 
-* ``det.txt``: MOTChallenge detection rows ``frame,-1,x,y,w,h,conf,-1,-1,-1`` (boxes in our
-  0-based continuous pixels, as ``tracks.csv``), one per accepted ROI;
+* ``det.txt``: MOTChallenge detection rows ``frame,-1,x,y,w,h,conf,-1,-1,-1`` (1-based boxes,
+  as MOTChallenge files and ``tracks.csv`` are), one per accepted ROI;
 * ``rois.csv``: header; every region found, accepted or not, with its features
   ``frame,x_px,y_px,w_px,h_px,cx_px,cy_px,perimeter_px,area_px,aspect,c1_per_px,c2,accepted,reason``;
 * ``detections.rrd``: the frame (``<channel>/image``, source bytes), the STDM
@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.io.groundtruth import MOT_BASE
 from pipeline.stages.detection import Detections, Region
 
 ROI_HEADER = ("frame", "x_px", "y_px", "w_px", "h_px", "cx_px", "cy_px", "perimeter_px", "area_px", "aspect",
@@ -39,7 +40,7 @@ class DetectionFiles:
         for r in d.regions:
             b = r.box
             conf = min(1.0, 1.0 / max(r.c2, 1.0))
-            self._det.write(f"{frame},-1,{b.x:.2f},{b.y:.2f},{b.w:.2f},{b.h:.2f},{conf:.3f},-1,-1,-1\n")
+            self._det.write(f"{frame},-1,{b.x + MOT_BASE:.2f},{b.y + MOT_BASE:.2f},{b.w:.2f},{b.h:.2f},{conf:.3f},-1,-1,-1\n")
         for r in (*d.regions, *d.rejected):
             self._w.writerow(_row(frame, r))
         self._det.flush()

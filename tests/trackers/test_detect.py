@@ -48,7 +48,7 @@ def test_detect_command_outputs_and_scores(scene, tmp_path):
     store = open_store(out / "detections.rrd")
     b = boxes_at(store, "infrared/rois", 1)
     assert b is not None and len(b["mins"]) == int((det[:, 0] == 1).sum())
-    np.testing.assert_allclose(b["mins"], det[det[:, 0] == 1][:, 2:4], atol=0.01)
+    np.testing.assert_allclose(b["mins"], det[det[:, 0] == 1][:, 2:4] - 1, atol=0.01)  # det.txt is 1-based
 
 
 def test_detect_initialises_the_dual_tracker(scene, tmp_path):
