@@ -364,8 +364,10 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
 
     if opts.protocol not in PROTOCOLS:
         raise InputError(f"--protocol must be one of {', '.join(PROTOCOLS)}; got {opts.protocol!r}")
-    if opts.export not in (None, "gtot", "rgbt234", "lasher"):
-        raise InputError(f"--export must be gtot, rgbt234 or lasher; got {opts.export!r}")
+    from pipeline.sinks.export import EXPORT_FORMATS
+
+    if opts.export is not None and opts.export not in EXPORT_FORMATS:
+        raise InputError(f"--export must be one of {', '.join(EXPORT_FORMATS)}; got {opts.export!r}")
     if opts.workers is not None and opts.workers < 1:
         raise InputError(f"--workers must be at least 1; got {opts.workers}")
     root, out = Path(root), Path(out)

