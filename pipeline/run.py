@@ -28,7 +28,7 @@ from pipeline.io.init import resolve_init
 from pipeline.io.sequence import FramePair, Sequence, open_sequence
 from pipeline.progress import Progress
 from pipeline.trackers import DEFAULT_TRACKER, Engine, make_tracker
-from pipeline.types import FrameResult, InitTarget
+from pipeline.types import BBox, FrameResult, FrameTruth, InitTarget, TruthMatch
 
 RUN_FILES = ("tracks.csv", "targets.csv", "run.rrd", "summary.json", "plots")
 
@@ -134,18 +134,27 @@ def _scene_seed(seq: Sequence) -> int | None:
     return None
 
 
-def frame_errors(seq: Sequence, result: FrameResult) -> dict[int, float]:
-    """Centre error per target at this frame against the scored channel's truth (ids as in the truth)."""
-    truth = seq.truth.primary()
-    out = {}
+def frame_truth(seq: Sequence, result: FrameResult) -> FrameTruth:
+    """The truth of this frame per channel, and each target's centre error, IoU and truth match against the
+    scored channel's truth (ids as in the truth; a target that is not reported scores as a failure)."""
     i = result.frame - 1
+    boxes = {ch: {tid: BBox(*b[i]) for tid, b in table.items() if not np.isnan(b[i]).any()}
+             for ch, table in seq.truth.boxes.items()}
+    scored = boxes.get(seq.truth.primary_channel() or "", {})
+    err, iou, match = {}, {}, {}
     for t in result.targets:
-        g = truth.get(t.id)
-        if g is None or np.isnan(g[i]).any():
+        g = scored.get(t.id)
+        if g is None:
+            if t.id in seq.truth.primary():
+                match[t.id] = TruthMatch.NO_TRUTH
             continue
-        gx, gy = g[i, 0] + g[i, 2] / 2, g[i, 1] + g[i, 3] / 2
-        out[t.id] = float(np.hypot(t.box.cx - gx, t.box.cy - gy)) if t.status.is_reported else float("inf")
-    return out
+        if t.status.is_reported:
+            err[t.id] = float(np.hypot(t.box.cx - g.cx, t.box.cy - g.cy))
+            iou[t.id] = t.box.iou(g)
+        else:
+            err[t.id], iou[t.id] = float("inf"), 0.0
+        match[t.id] = TruthMatch.OVERLAP if iou[t.id] > 0 else TruthMatch.FAILURE
+    return FrameTruth(boxes, err, iou, match)
 
 
 def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
@@ -220,7 +229,7 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
                 ts = time.perf_counter()
                 csv_sink.write(s.result)
                 if rrd_sink is not None:
-                    rrd_sink.write(s.frames, s.result, frame_errors(seq, s.result) if seq.truth.has_truth else None)
+                    rrd_sink.write(s.frames, s.result, frame_truth(seq, s.result) if seq.truth.has_truth else None)
                 sink_s += time.perf_counter() - ts
                 for t in s.result.targets:
                     if t.id not in boxes:

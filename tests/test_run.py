@@ -52,7 +52,8 @@ def test_rrd_reads_back_equal_to_csv(scene, tmp_path):
                             capture_output=True, text=True, timeout=120)
     assert verify.returncode == 0, verify.stderr
     store = open_store(out / "run.rrd")
-    tracks = {int(r[0]): [float(v) for v in r[2:6]] for r in _csv_rows(out / "tracks.csv")}
+    tracks = {int(r[0]): [float(r[2]) - 1, float(r[3]) - 1, float(r[4]), float(r[5])]  # tracks.csv is 1-based
+              for r in _csv_rows(out / "tracks.csv")}
     for frame in (1, 57, 150, 220):
         for ch in ("visible", "infrared"):
             b = boxes_at(store, f"/{ch}/targets", frame)
@@ -134,3 +135,29 @@ def test_mil_on_real_footage(realdata, tmp_path):
 def test_mil_on_all_real_footage(realdata, name, tmp_path):
     res = run_track(realdata / name, RunOptions(tracker="mil", out_dir=tmp_path / name, plots=False))
     assert res.complete
+
+
+def test_rrd_holds_the_truth_iou_and_failures(scene, tmp_path):
+    from pipeline.io.sequence import open_sequence
+
+    seq_dir = scene("occluded-moving")
+    out = run_track(seq_dir, RunOptions(tracker="camshift", out_dir=tmp_path / "run")).out_dir
+    store = open_store(out / "run.rrd")
+    truth = open_sequence(seq_dir).truth
+    for frame in (1, 90):
+        for ch in ("visible", "infrared"):
+            b = boxes_at(store, f"/{ch}/truth", frame)
+            np.testing.assert_allclose(np.hstack([b["mins"][0], b["sizes"][0]]), truth.boxes[ch][1][frame - 1], atol=2e-3)
+            assert b["labels"] == ["GT 1"]
+    iou = rows(store, "/metrics/1/iou", ["Scalars:scalars"])
+    assert iou.num_rows == 220
+    vals = [v[0] if isinstance(v, list) else v for v in iou.column("Scalars:scalars").to_pylist()]
+    assert vals[0] == pytest.approx(1.0) and min(vals) == 0.0  # CamShift loses the target behind the wall
+    states = rows(store, "/targets/1/truth", ["StateChange:state"]).to_pylist()
+    seq_states = [s["StateChange:state"][0] if isinstance(s["StateChange:state"], list) else s["StateChange:state"]
+                  for s in states]
+    assert seq_states[0] == "overlap" and "failure" in seq_states
+    first_fail = next(s["frame"] for s, v in zip(states, seq_states, strict=True) if v == "failure")
+    assert vals[first_fail - 1] == 0.0
+    ev = texts(store, "/events")
+    assert any(f == first_fail and t.startswith("[failure] T1") for f, t in ev)

@@ -25,7 +25,7 @@ def main() -> None:
     from pipeline.sinks.rerun_sink import RerunSink
     from pipeline.sinks.settings import RerunConfig
     from pipeline.synthetic import synthesize
-    from pipeline.types import BBox, Event, EventKind, FrameResult, TargetResult, TargetStatus
+    from pipeline.types import BBox, Event, EventKind, FrameResult, FrameTruth, TargetResult, TargetStatus, TruthMatch
 
     ap = argparse.ArgumentParser()
     ap.add_argument("seq", nargs="?", type=Path)
@@ -51,7 +51,8 @@ def main() -> None:
         sink = RerunSink(path, seq.channels, [1, 2], RerunConfig(), "cost", {"x": 1}, True, "start")
         t0 = time.perf_counter()
         for f, r in zip(frames, results, strict=True):
-            sink.write(f, r, {1: 1.5, 2: 2.5})
+            sink.write(f, r, FrameTruth({"visible": {1: r.targets[0].box}}, {1: 1.5, 2: 2.5}, {1: 0.8, 2: 0.7},
+                                        {1: TruthMatch.OVERLAP, 2: TruthMatch.OVERLAP}))
         t1 = time.perf_counter()
         sink.close()
         t2 = time.perf_counter()

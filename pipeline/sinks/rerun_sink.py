@@ -6,7 +6,12 @@ video, are JPEG-encoded once), ``visible/targets`` and ``infrared/targets`` (Box
 class id = track id, label ``T<id> <status>``; occluded boxes, and merged targets other than the merge's
 foreground, are drawn with a thinner line), ``infrared/contours`` (LineStrips2D), ``events`` (TextLog), ``targets/<id>/status``
 (StateChange), ``metrics/<id>/center_error_px`` (Scalars, when truth exists),
-``timing/<stage>_ms``, and the resolved config as a static ``config`` document.
+``timing/<stage>_ms``, and the resolved config as a static ``config`` document. With
+ground truth, also ``visible/truth`` and ``infrared/truth`` (Boxes2D, each channel's own
+truth, white, label ``GT <id>``), ``metrics/<id>/iou`` (Scalars, beside the centre error)
+and ``targets/<id>/truth`` (StateChange ``overlap`` / ``failure`` / ``no-truth``, under the
+target's status, so a frame where the output misses the truth or is missing shows on the
+timeline), with a ``failure`` event where a failure starts.
 
 To keep logging well under 1 ms per frame pair, frames are buffered and written with
 ``send_columns`` every ``batch_frames`` frames; :meth:`RerunSink.close` writes what is
@@ -29,7 +34,7 @@ import rerun.blueprint as rrb
 
 from pipeline.io.sequence import FramePair
 from pipeline.sinks.settings import RerunConfig
-from pipeline.types import FrameResult, TargetStatus
+from pipeline.types import FrameResult, FrameTruth, TargetStatus, TruthMatch
 
 APP_ID = "dualtrack"
 
@@ -45,7 +50,10 @@ STATUS_COLORS = {
     TargetStatus.MERGED: 0x42A5F5FF,
     TargetStatus.LOST: 0xEF5350FF,
 }
+TRUTH_COLOR = (255, 255, 255)
+TRUTH_MATCH_COLORS = {TruthMatch.OVERLAP: 0x4CAF50FF, TruthMatch.FAILURE: 0xEF5350FF, TruthMatch.NO_TRUTH: 0x9E9E9EFF}
 EVENT_LEVEL = {
+    "failure": rr.TextLogLevel.WARN,
     "lost": rr.TextLogLevel.WARN,
     "merge": rr.TextLogLevel.INFO,
     "split": rr.TextLogLevel.INFO,
@@ -62,15 +70,24 @@ def track_color(track_id: int) -> tuple[int, int, int]:
     return PALETTE[(track_id - 1) % len(PALETTE)]
 
 
-def blueprint(channels: tuple[str, ...]) -> rrb.Blueprint:
-    """Default layout: the channels side by side, time series and events below."""
+def blueprint(channels: tuple[str, ...], target_ids: list[int] | tuple[int, ...] = (), has_truth: bool = False
+              ) -> rrb.Blueprint:
+    """Default layout: the channels side by side (truth boxes with them), time series and events below; with
+    truth the centre error and the IoU of ``target_ids`` side by side."""
     views = [rrb.Spatial2DView(origin=f"/{c}", name=c.capitalize()) for c in channels]
+    series: list[rrb.View] = []
+    if has_truth:
+        ids = sorted(target_ids)
+        series.append(rrb.TimeSeriesView(origin="/metrics", name="Centre error [px]",
+                                         contents=["+ /metrics/**", *(f"- /metrics/{i}/iou" for i in ids)]))
+        series.append(rrb.TimeSeriesView(origin="/metrics", name="IoU with the truth",
+                                         contents=[f"+ /metrics/{i}/iou" for i in ids] or ["- /metrics/**"]))
     bottom = rrb.Horizontal(
-        rrb.TimeSeriesView(origin="/metrics", name="Centre error [px]"),
+        *series,
         rrb.TextLogView(origin="/events", name="Events"),
-        rrb.StateTimelineView(origin="/targets", name="Status"),
+        rrb.StateTimelineView(origin="/targets", name="Status and truth match"),
         rrb.TimeSeriesView(origin="/timing", name="Stage time [ms]"),
-        column_shares=[3, 3, 2, 2],
+        column_shares=[3] * len(series) + [3, 2, 2],
     )
     return rrb.Blueprint(rrb.Vertical(rrb.Horizontal(*views), bottom, row_shares=[3, 2]), collapse_panels=True)
 
@@ -92,7 +109,9 @@ class RerunSink:
         self.cfg = cfg
         self.channels = channels
         self.rec = rr.RecordingStream(APP_ID, recording_id=f"{recording_name}-{uuid.uuid4().hex[:12]}")
-        self.rec.save(str(path), default_blueprint=blueprint(channels))
+        self._blueprint_ids = tuple(sorted(target_ids))
+        self.rec.save(str(path), default_blueprint=blueprint(channels, self._blueprint_ids, has_truth))
+        self._match: dict[int, TruthMatch] = {}
         self._buf: dict[str, list] = defaultdict(list)
         self._frames: list[int] = []
         self._status: dict[int, TargetStatus] = {}
@@ -104,15 +123,19 @@ class RerunSink:
             labels=[st.value for st in TargetStatus],
             colors=np.array([STATUS_COLORS[st] for st in TargetStatus], np.uint32),
         )
+        self._truth_config = rr.StateConfiguration(
+            values=[m.value for m in TruthMatch], labels=[m.value for m in TruthMatch],
+            colors=np.array([TRUTH_MATCH_COLORS[m] for m in TruthMatch], np.uint32),
+        )
         self._log_static(target_ids, config, has_truth)
 
     # -- static ---------------------------------------------------------------------
     def _log_static(self, target_ids: list[int], config: dict[str, object] | None, has_truth: bool) -> None:
+        self._has_truth = has_truth
         self.rec.log("/", rr.AnnotationContext([]), static=True)  # replaced as ids appear
         self._annotate(target_ids)
         if config is not None:
             self.rec.log("config", rr.TextDocument(json.dumps(config, indent=2), media_type="text/plain"), static=True)
-        self._has_truth = has_truth
 
     def _annotate(self, ids: list[int]) -> None:
         new = [i for i in ids if i not in self._known_ids]
@@ -128,9 +151,12 @@ class RerunSink:
                 static=True,
             )
             self.rec.log(f"targets/{i}/status", self._state_config, static=True)
+            if self._has_truth:
+                self.rec.log(f"metrics/{i}/iou", rr.SeriesLines(colors=[track_color(i)], names=[f"T{i} IoU"]), static=True)
+                self.rec.log(f"targets/{i}/truth", self._truth_config, static=True)
 
     # -- per frame --------------------------------------------------------------------
-    def write(self, frames: FramePair, result: FrameResult, errors: dict[int, float] | None = None) -> None:
+    def write(self, frames: FramePair, result: FrameResult, truth: FrameTruth | None = None) -> None:
         if self._closed:
             raise RuntimeError("RerunSink is closed")
         f = result.frame
@@ -176,10 +202,23 @@ class RerunSink:
                 self._buf[f"targets/{t.id}/status"].append((f, t.status.value))
         for ev in result.events:
             self._buf["events"].append((f, f"[{ev.kind.value}] {ev.text}", ev.kind.value))
-        if errors:
-            for tid, e in errors.items():
-                if e is not None and np.isfinite(e):
+        if truth is not None:
+            for ch in self.channels:
+                tb = truth.boxes.get(ch, {})
+                self._buf[f"truth:{ch}"].append((f, [(b.cx, b.cy, b.w / 2, b.h / 2) for b in tb.values()],
+                                                 [f"GT {i}" for i in tb]))
+            for tid, e in truth.center_error_px.items():
+                if np.isfinite(e):
                     self._buf[f"metrics/{tid}/center_error_px"].append((f, float(e)))
+            for tid, v in truth.iou.items():
+                self._buf[f"metrics/{tid}/iou"].append((f, float(v)))
+            for tid, m in truth.match.items():
+                if self._match.get(tid) != m:
+                    if m == TruthMatch.FAILURE:
+                        why = "no output" if not np.isfinite(truth.center_error_px.get(tid, np.inf)) else "IoU 0"
+                        self._buf["events"].append((f, f"[failure] T{tid}: {why} against the truth", "failure"))
+                    self._match[tid] = m
+                    self._buf[f"targets/{tid}/truth"].append((f, m.value))
         for stage, sec in result.stage_seconds.items():
             self._buf[f"timing/{stage}_ms"].append((f, sec * 1e3))
         if len(self._frames) >= self.cfg.batch_frames:
@@ -210,6 +249,15 @@ class RerunSink:
                 ).partition(lengths)
                 for ch in self.channels:
                     rec.send_columns(f"{ch}/targets", indexes=idx, columns=cols)
+            elif key.startswith("truth:"):
+                lengths = [len(r[1]) for r in rows]
+                arr = np.asarray([b for r in rows for b in r[1]], np.float32).reshape(-1, 4)
+                cols = rr.Boxes2D.columns(
+                    centers=arr[:, :2], half_sizes=arr[:, 2:], labels=[s for r in rows for s in r[2]],
+                    colors=np.tile(np.asarray(TRUTH_COLOR, np.uint8), (len(arr), 1)),
+                    radii=np.full(len(arr), -1.0, np.float32),
+                ).partition(lengths)
+                rec.send_columns(f"{key.split(':', 1)[1]}/truth", indexes=idx, columns=cols)
             elif key.startswith("overlay:"):
                 name = key.split(":", 1)[1]
                 frames_sorted = sorted({r[0] for r in rows})
@@ -238,7 +286,7 @@ class RerunSink:
                 rec.send_columns("events", indexes=idx, columns=rr.TextLog.columns(
                     text=[r[1] for r in rows],
                     level=[EVENT_LEVEL.get(r[2], rr.TextLogLevel.INFO) for r in rows]))
-            elif key.endswith("/status"):
+            elif key.endswith("/status") or key.endswith("/truth"):
                 rec.send_columns(key, indexes=idx, columns=rr.StateChange.columns(state=[r[1] for r in rows]))
             else:
                 rec.send_columns(key, indexes=idx, columns=rr.Scalars.columns(
@@ -250,6 +298,8 @@ class RerunSink:
             return
         try:
             self.flush()
+            if self._has_truth and tuple(sorted(self._known_ids)) != self._blueprint_ids:  # ids born in the run
+                self.rec.send_blueprint(blueprint(self.channels, sorted(self._known_ids), True))
         finally:
             self._closed = True
             self.rec.flush(timeout_sec=10.0)
