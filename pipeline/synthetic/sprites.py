@@ -260,7 +260,7 @@ def cyclist(height_px: float, palette: Palette, body: tuple[int, int, int], phas
     # rider: legs to the pedals (one phase), torso leaning forward, arms to the bar, head
     ang = 2 * math.pi * phase
     hip = (seat[0] + 0.01 * H, seat[1] - 0.03 * H)
-    for k, sgn in ((0, 1), (1, -1)):
+    for sgn in (1, -1):
         pedal = (crank[0] + sgn * 0.09 * H * math.cos(ang), crank[1] + sgn * 0.09 * H * math.sin(ang))
         knee = ((hip[0] + pedal[0]) / 2 + 0.10 * H, (hip[1] + pedal[1]) / 2 - 0.05 * H)
         beam(hip, knee, 0.085 * H, palette.bottom, 0.7, plain)
