@@ -154,89 +154,93 @@ def _body(kind: str, height_px: float) -> _Body:
     return _Body(kind, length, length, height_px)  # car
 
 
+REAL_HEIGHT_M = {"person": 1.7, "cyclist": 1.75, "car": 1.5}
+"""Real heights of the kinds, which set their image size from the ground row they stand on."""
+
+
 def _scale_profile(rng: np.random.Generator, n: int, kind: str, lo_ratio: float, hi_ratio: float
                    ) -> tuple[np.ndarray, dict[str, object]]:
     t = np.arange(n, dtype=np.float64)
+    if kind == "approach" and hi_ratio < 1.3:
+        kind = "constant"
+    if kind == "recede" and lo_ratio > 0.77:
+        kind = "constant"
     if kind == "constant":
         return np.ones(n), {"scale": "constant"}
-    ratio = float(rng.uniform(1.3, max(hi_ratio, 1.3))) if kind == "approach" else float(rng.uniform(min(lo_ratio, 0.77), 0.77))
+    ratio = float(rng.uniform(1.3, hi_ratio)) if kind == "approach" else float(rng.uniform(lo_ratio, 0.77))
     a = float(rng.uniform(0, 0.35) * n)
     b = float(rng.uniform(0.65, 1.0) * n)
     u = _smoothstep((t - a) / max(b - a, 1.0))
     return np.exp(np.log(ratio) * u), {"scale": kind, "scale_ratio": round(ratio, 3), "scale_frames": [round(a) + 1, round(b) + 1]}
 
 
-def _motion(rng: np.random.Generator, n: int, kind: str, speed: float, start: np.ndarray, heading: float,
-            half: np.ndarray, bounds: tuple[float, float, float, float], leave_at: int | None,
-            entry: bool, actor_kind: str = "person") -> tuple[np.ndarray, dict[str, object]]:
-    """Per-frame centres for a motion ``kind``; bounces inside ``bounds`` (centre limits before the half-size)
-    until ``leave_at``, after which the actor may walk out of the frame."""
-    x_lo, x_hi, y_lo, y_hi = bounds
-    pos = np.zeros((n, 2))
-    p = start.astype(np.float64).copy()
-    ang = heading
-    info: dict[str, object] = {"motion": kind, "speed_px": round(speed, 2), "heading_deg": round(math.degrees(heading), 1)}
-    turns: list[tuple[int, float, int]] = []
+def _x_motion(rng: np.random.Generator, n: int, kind: str, speed: float, x0: float, direction: float,
+              half_w: np.ndarray, width: float, leave_at: int | None, entry: bool, actor_kind: str
+              ) -> tuple[np.ndarray, dict[str, object]]:
+    """Per-frame centre x for a motion ``kind`` along the ground (the depth motion is the scale profile's).
+
+    Bounces off the frame's sides (wholly inside) unless it is walking in (``entry``) or out
+    (after ``leave_at``, towards the nearer side). Reversals slow down to a stand first, for
+    a few frames (people) or longer (vehicles)."""
+    x = np.zeros(n)
+    p = float(x0)
+    d = 1.0 if direction >= 0 else -1.0
+    info: dict[str, object] = {"motion": kind, "speed_px": round(speed, 2), "direction": int(d)}
+    turns: list[int] = []
     stops: list[tuple[int, int]] = []
-    vertical = abs(math.sin(heading)) < 0.2 and actor_kind == "car"  # a car only turns back along its lane
+    slow = 6 if actor_kind == "car" else 2
     if kind == "turning":
-        for _ in range(int(rng.integers(1, 4))):
-            d = math.pi if vertical else float(rng.uniform(math.radians(60), math.pi))
-            turns.append((int(rng.integers(10, n - 10)), float(rng.choice([-1, 1]) * d), int(rng.integers(3, 12))))
-        info["turns"] = [[f + 1, round(math.degrees(d), 1)] for f, d, _ in turns]
+        turns = sorted(int(rng.integers(10, n - 10)) for _ in range(int(rng.integers(1, 4))))
+        info["turns"] = [f + 1 for f in turns]
     if kind == "fast":
         f = int(rng.integers(10, 30))
         while f < n:
-            d = math.pi if vertical else float(rng.uniform(math.radians(40), math.radians(150)))
-            turns.append((f, float(rng.choice([-1, 1]) * d), int(rng.integers(2, 6))))
+            turns.append(f)
             f += int(rng.integers(12, 40))
         info["turns"] = len(turns)
+    for f in turns:
+        stops.append((max(f - slow, 0), f + slow))
     if kind == "stopping":
         for _ in range(int(rng.integers(1, 3))):
             s0 = int(rng.integers(15, max(n - 60, 16)))
             stops.append((s0, s0 + int(rng.integers(15, 50))))
         info["stops"] = [[a + 1, b + 1] for a, b in stops]
-    amp, period = float(rng.uniform(math.radians(20), math.radians(60))), float(rng.uniform(40, 140))
+    amp, period, phase = float(rng.uniform(0.3, 0.7)), float(rng.uniform(40, 140)), float(rng.uniform(0, 2 * np.pi))
     if kind == "curved":
-        info.update({"curve_amplitude_deg": round(math.degrees(amp), 1), "curve_period_frames": round(period, 1)})
-    phase = float(rng.uniform(0, 2 * math.pi))
-    entering = entry  # walking in from outside the frame: no bounce until wholly inside
-    turn_rate = np.zeros(n)
-    for f, d, dur in turns:
-        turn_rate[f : min(f + dur, n)] += d / dur
-    curving = kind == "curved"
+        info.update({"speed_wave": round(amp, 2), "wave_frames": round(period, 1)})
+    turn_at = set(turns)
+    entering = entry
     for t in range(n):
-        pos[t] = p
+        x[t] = p
         v = speed
-        for a, b in stops:  # slows down over 4 frames, stands, starts again over 4 frames
+        for a, b in stops:  # slows down to a stand and starts again
             if a <= t < b:
-                v = speed * (1.0 - min(t - a, b - 1 - t, 4) / 4.0)
+                ramp = max(min(t - a, b - 1 - t), 0) / max(min(4, (b - a) // 2), 1)
+                v = speed * max(0.0, 1.0 - min(ramp, 1.0))
+        if kind == "curved":
+            v *= 1.0 + amp * np.sin(2 * np.pi * t / period + phase)
+        if t in turn_at:
+            d = -d
         leaving = leave_at is not None and t >= leave_at
-        if leave_at is not None and t == leave_at:  # head for the nearer side and walk out
-            ang = 0.0 if p[0] > (x_lo + x_hi) / 2 else math.pi
-            turn_rate[t:] = 0.0
-            curving = False
-        heading_t = ang + (amp * math.sin(2 * math.pi * t / period + phase) if curving else 0.0)
-        ang += turn_rate[t]
-        step = np.array([math.cos(heading_t), math.sin(heading_t)]) * min(v, MAX_SPEED_PX)
-        q = p + step
-        hx, hy = half[min(t + 1, n - 1)]
-        lo_x, hi_x = x_lo + hx, x_hi - hx
-        if entering and lo_x <= q[0] <= hi_x:
+        if leave_at is not None and t == leave_at:
+            d = 1.0 if p > width / 2 else -1.0
+            turn_at.clear()
+        q = p + d * min(v, MAX_SPEED_PX)
+        hw = half_w[min(t + 1, n - 1)]
+        lo, hi = hw, width - hw
+        if entering and lo <= q <= hi:
             entering = False  # wholly inside: from now on it stays in the frame
-        hold_x = not entering and not leaving
-        if hold_x and (q[0] < lo_x or q[0] > hi_x):
-            ang = math.pi - ang
-            step[0] = -step[0]
-        if q[1] < y_lo or q[1] > y_hi - hy:  # people and vehicles stay on the ground
-            ang = -ang
-            step[1] = -step[1]
-        q = p + step
-        if hold_x:
-            q[0] = min(max(q[0], lo_x), hi_x)
-        q[1] = min(max(q[1], y_lo), y_hi - hy)
+        if not entering and not leaving and (q < lo or q > hi):
+            d = -d
+            q = min(max(p + d * min(v, MAX_SPEED_PX), lo), hi)
         p = q
-    return pos, info
+    return x, info
+
+
+def _wiggle(rng: np.random.Generator, n: int, amplitude: float) -> np.ndarray:
+    """A slow smooth wander in [-amplitude, amplitude] (the feet row of someone walking roughly straight)."""
+    w = cv2.GaussianBlur(rng.normal(0, 1, (1, n + 60)).astype(np.float64), (0, 0), 15.0)[0, 30 : 30 + n]
+    return amplitude * w / max(float(np.abs(w).max()), 1e-9)
 
 
 # ---------------------------------------------------------------------------------------------- the scene
@@ -245,6 +249,11 @@ def _motion(rng: np.random.Generator, n: int, kind: str, speed: float, start: np
 def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: int = 320, height: int = 240,
                n_frames: int = 200) -> DrawnScene:
     """Draw one random scene.
+
+    The camera looks at a flat ground: everything stands on it, an object's image height
+    follows the row its feet are on (``feet - horizon = k * height``, with ``k`` drawn per
+    scene from the camera height), approaching means walking down the image and growing,
+    and whoever stands lower in the image is in front.
 
     Parameters
     ----------
@@ -272,74 +281,83 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
     n, W, H = n_frames, width, height
 
     bg = street_background(rng, W, H)
-    horizon = bg.horizon_px
+    horizon = float(bg.horizon_px)
     night = bool(bg.params["night"])
     ambient = float(bg.params["ir_ambient"])
+    k_cam = float(rng.uniform(0.55, 1.8))  # camera height, in person heights
+
+    def k_of(kind: str) -> float:
+        return k_cam * REAL_HEIGHT_M["person"] / REAL_HEIGHT_M[kind]
+
+    def height_at(kind: str, feet: float) -> float:
+        return max((feet - horizon) / k_of(kind), 1.0)
+
+    def center_y(feet: np.ndarray | float, h: np.ndarray | float) -> np.ndarray | float:
+        return feet - 0.5 * h
+
     actors: list[Actor] = []
     roles: dict[int, str] = {}
     params: dict[str, object] = {"family": "random", "seed": seed, "size": [W, H], "frames": n,
+                                 "camera_height_person_heights": round(k_cam, 3),
                                  "background": bg.params, "structures": bg.structures}
     target_params: list[dict[str, object]] = []
-    tracks: list[tuple[np.ndarray, np.ndarray, _Body, float]] = []  # centres, scale, body, depth
-    crossovers: list[tuple[float, float, float] | None] = []
-
-    def ground_y_limits(body_h: np.ndarray) -> tuple[float, float]:
-        return float(horizon - 0.25 * body_h.max()), float(H + 0.02 * H)
-
+    # per target: centre x, feet row, image height per frame, body, the visible crossover window
+    tracks: list[dict[str, object]] = []
     max_h = min(150.0, 0.62 * H)
     for k in range(k_targets):
-        kind = str(rng.choice(["person", "person", "person", "cyclist", "car"], p=None))
+        kind = str(rng.choice(["person", "person", "person", "cyclist", "car"]))
+        kk = k_of(kind)
+        h_cap = min(max_h, 0.45 * 0.5 * W) if kind == "car" else max_h
+        h_cap = min(h_cap, (1.02 * H - horizon) / kk)  # its feet on the ground in the frame
+        h_px = float(np.clip(np.exp(rng.normal(np.log(45.0), 0.55)), 10.0, max(h_cap, 10.0)))
+        feet0 = horizon + kk * h_px
         scale_kind = str(rng.choice(["constant", "constant", "constant", "approach", "recede"]))
-        h_px = float(np.clip(math.exp(rng.normal(math.log(45.0), 0.55)), 10.0, max_h))  # median 45 px
-        if kind == "car":
-            h_px = min(h_px, 0.45 * 0.5 * W)  # at most half the frame long
-        # keep the scaled size within 10..150 px tall
-        hi_ratio = min(3.0, max_h / h_px)
+        hi_ratio = min(3.0, max_h / h_px, (1.08 * H - horizon) / (kk * h_px))  # feet may leave through the bottom
         lo_ratio = max(0.4, 10.0 / h_px)
         scale, sinfo = _scale_profile(rng, n, scale_kind, lo_ratio, hi_ratio)
-        body = _body(kind, h_px)
-        half = np.stack([0.5 * body.w * scale, 0.5 * body.h * scale], axis=1)
         motion = str(rng.choice(["straight", "curved", "stopping", "turning", "fast"], p=[0.25, 0.2, 0.15, 0.25, 0.15]))
-        if kind == "car" and motion == "curved":  # cars keep to their lane
-            motion = "straight"
-        base = {"person": (0.012, 0.035), "cyclist": (0.03, 0.08), "car": (0.04, 0.12)}[kind]
-        speed = float(rng.uniform(*base) * body.size_px)
-        speed = float(np.clip(speed, 0.3, 4.0))
+        if motion == "curved":  # a curve over the ground: the depth wanders while it goes along
+            scale = scale * (1.0 + float(rng.uniform(0.05, 0.15)) * np.sin(np.arange(n) / float(rng.uniform(25, 60))))
+        feet = horizon + kk * h_px * scale + _wiggle(rng, n, 0.015 * (H - horizon))
+        hgt = (feet - horizon) / kk
+        body = _body(kind, h_px)
+        half_w = 0.5 * body.w * hgt / h_px
+        base = {"person": (0.015, 0.04), "cyclist": (0.04, 0.1), "car": (0.05, 0.25)}[kind]
+        speed = float(np.clip(rng.uniform(*base) * h_px, 0.3, 6.0))
         if motion == "fast":
             speed = float(rng.uniform(6.0, MAX_SPEED_PX))
-        y_lo, y_hi = ground_y_limits(body.h * scale)
         leave = bool(rng.random() < 0.2)
         entry = bool(rng.random() < 0.15)
         leave_at = int(rng.uniform(0.6, 0.9) * n) if leave else None
-        heading = float(rng.choice([0.0, math.pi]) + rng.uniform(-0.45, 0.45) * (0.3 if kind == "car" else 1.0))
-        if motion == "fast" and kind != "car":
-            heading = float(rng.uniform(0, 2 * math.pi))
-        hx0, hy0 = half[0]
+        direction = float(rng.choice([-1.0, 1.0]))
+        hw0 = half_w[0]
         if entry:  # starts partly outside the frame, walking in
-            side = int(rng.choice([-1, 1]))
-            cx0 = (hx0 * rng.uniform(0.1, 0.6)) if side < 0 else (W - hx0 * rng.uniform(0.1, 0.6))
-            heading = (0.0 if side < 0 else math.pi) + float(rng.uniform(-0.3, 0.3))
+            side = float(rng.choice([-1.0, 1.0]))
+            x0 = hw0 * rng.uniform(0.1, 0.6) if side < 0 else W - hw0 * rng.uniform(0.1, 0.6)
+            direction = -side
         else:
-            cx0 = float(rng.uniform(hx0 + 1, max(W - hx0 - 1, hx0 + 2)))
-        feet_lo = max(horizon + 0.15 * (H - horizon), y_lo + 2 * hy0)
-        cy0 = float(rng.uniform(min(feet_lo, H - 2), H - 1)) - hy0
-        # crossings between targets: a later target passes through an earlier one's position
+            x0 = float(rng.uniform(hw0 + 1, max(W - hw0 - 1, hw0 + 2)))
+        xs, minfo = _x_motion(rng, n, motion, speed, x0, direction, half_w, float(W), leave_at, entry, kind)
         cross = None
-        if k > 0 and rng.random() < 0.6:
-            cross = (int(rng.integers(k)), int(rng.uniform(0.3, 0.7) * n))
-        pos, minfo = _motion(rng, n, motion, speed, np.array([cx0, cy0]), heading, half, (0.0, float(W), y_lo, y_hi),
-                             leave_at, entry, kind)
-        if cross is not None:  # a detour that meets the other target's path at frame tc and rejoins its own
-            other, tc = cross
-            shift = tracks[other][0][tc] - pos[tc]
-            shift[1] *= 0.6  # depth order shows as slightly different ground rows
-            span = max(int(math.ceil(0.5 * float(np.hypot(*shift)))), 8)  # smoothstep: at most 3 px/frame extra
+        if k > 0 and rng.random() < 0.6:  # a detour that meets an earlier target at frame tc, in front or behind
+            other = int(rng.integers(k))
+            tc = int(rng.uniform(0.3, 0.7) * n)
+            shift = float(tracks[other]["x"][tc] - xs[tc])  # type: ignore[index]
+            span = max(int(np.ceil(0.5 * abs(shift))), 8)  # smoothstep: at most 3 px/frame extra
             if span <= tc and tc + span < n:
                 t = np.arange(n, dtype=np.float64)
                 wgt = np.where(t <= tc, _smoothstep((t - (tc - span)) / span), 1.0 - _smoothstep((t - tc) / span))
-                pos = pos + shift[None, :] * wgt[:, None]
+                xs = xs + shift * wgt
+                # the same ground row as the other there, a little in front or behind
+                target_row = float(tracks[other]["feet"][tc]) + float(rng.choice([-1, 1]) * rng.uniform(3, 10))  # type: ignore[index]
+                dy = target_row - feet[tc]
+                feet = feet + dy * wgt
+                hgt = (feet - horizon) / kk
+                cross = (other, tc)
                 minfo["crosses_target"] = [other + 1, tc + 1]
-        depth = float(1.0 + k + rng.uniform(-0.3, 0.3))
+        hgt = np.clip((feet - horizon) / kk, max(0.4 * h_px, 8.0), 3.0 * h_px)  # within 0.4-3x of frame 1
+        feet = horizon + kk * hgt
+        scale = hgt / h_px
         palette = _random_palette(rng)
         body_color = tuple(int(v) for v in rng.integers(20, 235, 3))
         contrast = float(rng.uniform(25, 75) if not night else rng.uniform(40, 100))
@@ -348,124 +366,109 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
         crossover = None
         if rng.random() < 0.25 and n > 60:
             c0 = float(rng.uniform(max(0.15 * n, 12.0), 0.6 * n))
-            c1 = c0 + float(rng.uniform(20, 70))
-            low = float(rng.uniform(0.0, 0.15))
-            crossover = (c0, c1, low)
-        ir_factor = None
-        if crossover is not None:
-            c0, c1, low = crossover
-
-            def ir_factor(t: float, c0: float = c0, c1: float = c1, low: float = low) -> float:
-                ramp = 10.0
-                if t < c0 or t > c1 + ramp:
-                    return 1.0
-                if t < c0 + ramp:
-                    return 1.0 + (low - 1.0) * float(_smoothstep(np.array((t - c0) / ramp)))
-                if t <= c1:
-                    return low
-                return low + (1.0 - low) * float(_smoothstep(np.array((t - c1) / ramp)))
-
+            crossover = (c0, c0 + float(rng.uniform(20, 70)), float(rng.uniform(0.0, 0.15)))
         tid = k + 1
         roles[len(actors)] = "target"
-        actors.append(Actor(kind, body.size_px, _array_path(pos, scale), target_id=tid,
-                            depth=depth, palette=palette, body_color=body_color,  # type: ignore[arg-type]
-                            facing=1 if math.cos(heading) >= 0 else -1, ir_contrast=contrast, ir_factor=ir_factor,
+        feet_arr = feet.copy()
+        actors.append(Actor(kind, body.size_px, _array_path(np.column_stack([xs, center_y(feet, hgt)]), scale),
+                            target_id=tid, depth=_array_depth(feet_arr), palette=palette,
+                            body_color=body_color,  # type: ignore[arg-type]
+                            facing=int(direction), ir_contrast=contrast, ir_factor=_crossover_fn(crossover),
                             facing_auto=kind in ("car", "cyclist"), name=f"target {tid}"))
-        tracks.append((pos, scale, body, depth))
-        crossovers.append(crossover)
+        tracks.append({"x": xs, "feet": feet_arr, "h": hgt, "body": body, "kind": kind, "crossover": crossover,
+                       "actor": len(actors) - 1})
         target_params.append({"id": tid, "kind": kind, "height_px": round(h_px, 1), "ir_contrast": round(contrast, 1),
                               "palette": {"top": list(palette.top), "bottom": list(palette.bottom), "pattern": palette.pattern},
                               "entering": entry, "leaves_at": leave_at + 1 if leave_at is not None else None,
-                              "crossover": [round(crossover[0]) + 1, round(crossover[1]) + 1, round(crossover[2], 3)]
-                              if crossover else None, **sinfo, **minfo})
+                              "crossover": None, **sinfo, **minfo})
     params["targets"] = target_params
 
     # events around the first target (each with a probability)
     events: list[dict[str, object]] = []
-    pos1, scale1, body1, depth1 = tracks[0]
-    t1 = actors[0]
-    size1 = np.stack([body1.w * scale1, body1.h * scale1], axis=1)
+    t1 = tracks[0]
+    x1, feet1, h1 = t1["x"], t1["feet"], t1["h"]  # type: ignore[assignment]
+    a1 = actors[0]
+    vx1 = np.gradient(x1)  # type: ignore[arg-type]
 
-    def crossing_path(tc: int, speed: float, from_left: bool) -> np.ndarray:
-        x_c, y_c = pos1[tc]
-        t = np.arange(n) - tc
-        direction = 1.0 if from_left else -1.0
-        y_off = float(rng.uniform(-0.15, 0.15) * size1[tc, 1])
-        return np.stack([x_c + direction * speed * t, np.full(n, y_c + y_off)], axis=1)
+    def crossing(kind: str, tc: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """A path across the target's at frame tc, against its motion (relative speed >= 1.5 px/frame), on a ground
+        row a little in front of or behind it: (centre x, feet row, image height, row offset)."""
+        d_t = float(np.sign(vx1[tc])) or float(rng.choice([-1, 1]))  # type: ignore[index]
+        sp = float(rng.uniform(1.0, 3.5))
+        v = -d_t * max(sp, 1.5 + abs(float(vx1[tc])))  # type: ignore[index]
+        dy = float(rng.choice([-1, 1]) * rng.uniform(3, 12))
+        row = float(feet1[tc]) + dy  # type: ignore[index]
+        t = np.arange(n, dtype=np.float64) - tc
+        return float(x1[tc]) + v * t, np.full(n, row), height_at(kind, row), dy  # type: ignore[index]
 
-    # crossing person or car (depth order drawn)
+    def add_crossing(role: str, kind: str, tc: int, palette: Palette, contrast: float, body_color, name: str,
+                     size_of: float | None = None) -> bool:
+        xs, row, hc, dy = crossing(kind, tc)
+        hc = size_of if size_of is not None else hc
+        if hc < 6:
+            return False
+        b = _body(kind, hc)
+        roles[len(actors)] = role
+        actors.append(Actor(kind, b.size_px, _array_path(np.column_stack([xs, center_y(row, hc)]), np.ones(n)),
+                            depth=float(row[0]), palette=palette, body_color=body_color, ir_contrast=contrast,
+                            facing_auto=True, name=name))
+        return dy > 0
+
+    # a person or car crossing (its depth order follows the ground rows)
     if rng.random() < 0.35:
         tc = int(rng.uniform(0.25, 0.75) * n)
         kind = str(rng.choice(["person", "person", "car"]))
-        hgt = float(np.clip(size1[tc, 1] * rng.uniform(0.8, 1.25), 10, max_h))
-        b = _body(kind, hgt)
-        sp = float(rng.uniform(1.0, 3.0))
-        front = bool(rng.random() < 0.5)
-        roles[len(actors)] = "crossing"
-        actors.append(Actor(kind, b.size_px, _array_path(crossing_path(tc, sp, bool(rng.random() < 0.5)), np.ones(n)),
-                            depth=depth1 + (0.5 if front else -0.5), palette=_random_palette(rng),
-                            body_color=tuple(int(v) for v in rng.integers(20, 235, 3)),  # type: ignore[arg-type]
-                            ir_contrast=float(rng.uniform(30, 90)), facing_auto=True, name="crossing"))
+        front = add_crossing("crossing", kind, tc, _random_palette(rng), float(rng.uniform(30, 90)),
+                             tuple(int(v) for v in rng.integers(20, 235, 3)), "crossing")
         events.append({"event": "crossing", "frame": tc + 1, "kind": kind, "in_front": front})
-    # a cold colour look-alike (printed cut-out, a mannequin) passing near the target
+    # a cold colour look-alike (printed cut-out, a mannequin) passing close to the target
     if rng.random() < 0.25:
         tc = int(rng.uniform(0.25, 0.75) * n)
-        roles[len(actors)] = "look-alike"
-        actors.append(Actor(t1.kind, t1.size_px * float(rng.uniform(0.9, 1.1)),
-                            _array_path(crossing_path(tc, float(rng.uniform(0.8, 2.5)), bool(rng.random() < 0.5)),
-                                        np.full(n, float(scale1[tc]))),
-                            depth=depth1 - 0.5, palette=_lookalike_palette(t1.palette, rng), body_color=t1.body_color,
-                            ir_contrast=0.0, facing_auto=True, name="cold look-alike"))
+        add_crossing("look-alike", a1.kind, tc, _lookalike_palette(a1.palette, rng), 0.0, a1.body_color,
+                     "cold look-alike", size_of=float(h1[tc]) * float(rng.uniform(0.9, 1.1)))  # type: ignore[index]
         events.append({"event": "cold-look-alike", "frame": tc + 1})
     # a warm distractor of another colour
     if rng.random() < 0.3:
         tc = int(rng.uniform(0.25, 0.75) * n)
         kind = str(rng.choice(["person", "car"]))
-        hgt = float(np.clip(size1[tc, 1] * rng.uniform(0.8, 1.3), 10, max_h))
-        b = _body(kind, hgt)
-        roles[len(actors)] = "warm-distractor"
-        actors.append(Actor(kind, b.size_px, _array_path(crossing_path(tc, float(rng.uniform(0.8, 3.0)), bool(rng.random() < 0.5)),
-                                                          np.ones(n)),
-                            depth=depth1 - 0.5, palette=_random_palette(rng),
-                            body_color=tuple(int(v) for v in rng.integers(20, 235, 3)),  # type: ignore[arg-type]
-                            ir_contrast=float(t1.ir_contrast * rng.uniform(0.9, 1.6)), facing_auto=True,
-                            name="warm distractor"))
+        add_crossing("warm-distractor", kind, tc, _random_palette(rng), float(a1.ir_contrast * rng.uniform(0.9, 1.6)),
+                     tuple(int(v) for v in rng.integers(20, 235, 3)), "warm distractor")
         events.append({"event": "warm-distractor", "frame": tc + 1, "kind": kind})
     # a second warm person walking beside the target for a while
-    if t1.kind == "person" and rng.random() < 0.2:
+    if a1.kind == "person" and rng.random() < 0.2:
         a = int(rng.uniform(0.1, 0.5) * n)
         b_ = min(a + int(rng.uniform(40, 120)), n - 1)
         side = float(rng.choice([-1, 1]))
         t = np.arange(n)
-        near = float(rng.uniform(0.8, 1.3))
-        far = 4.0
+        near, far = float(rng.uniform(0.8, 1.3)), 4.0
         u = np.where(t < a, _smoothstep((t - (a - 25)) / 25.0), np.where(t > b_, 1 - _smoothstep((t - b_) / 25.0), 1.0))
         offset = side * (far - (far - near) * u)
-        path = pos1 + np.stack([offset * size1[:, 0], np.zeros(n)], axis=1)
+        w1 = _body("person", 1.0).w * h1  # type: ignore[operator]
+        row = feet1 + float(rng.choice([-1, 1]) * rng.uniform(2, 6))  # type: ignore[operator]
+        hc = (row - horizon) / k_of("person")
+        size = float(rng.uniform(0.9, 1.1))
         roles[len(actors)] = "companion"
-        actors.append(Actor("person", t1.size_px * float(rng.uniform(0.9, 1.1)), _array_path(path, scale1),
-                            depth=depth1 + float(rng.choice([-0.3, 0.3])), palette=_random_palette(rng),
-                            ir_contrast=float(t1.ir_contrast * rng.uniform(0.8, 1.2)), name="companion"))
+        actors.append(Actor("person", float(hc[0]) * size, _array_path(np.column_stack([x1 + offset * w1, center_y(row, hc * size)]),  # type: ignore[operator]
+                                                                        hc / hc[0]),
+                            depth=_array_depth(row), palette=_random_palette(rng),
+                            ir_contrast=float(a1.ir_contrast * rng.uniform(0.8, 1.2)), name="companion"))
         events.append({"event": "companion", "frames": [a + 1, b_ + 1], "side": int(side)})
-    # static occluders on the target's path: partial (a low wall or a pole) or full (a pillar)
+    # a static occluder on the target's path, standing just in front of it: partial (a low wall, a pole) or full
     if rng.random() < 0.35:
         tc = int(rng.uniform(0.2, 0.8) * n)
-        x_c, y_c = pos1[tc]
-        tw, th = size1[tc]
+        tw, th = float(_body(a1.kind, float(h1[tc])).w), float(h1[tc])  # type: ignore[index]
+        row = float(feet1[tc]) + float(rng.uniform(2, 8))  # type: ignore[index]
         kind = str(rng.choice(["full", "low-wall", "pole"]))
         if kind == "full":
-            ow, oh = float(tw * rng.uniform(1.1, 2.0)), float(th * rng.uniform(1.2, 2.0))
-            oy = y_c + th / 2 - oh / 2 + 0.05 * th
+            ow, oh = tw * float(rng.uniform(1.1, 2.0)), th * float(rng.uniform(1.2, 2.0))
         elif kind == "low-wall":
-            ow, oh = float(tw * rng.uniform(1.5, 4.0)), float(th * rng.uniform(0.3, 0.6))
-            oy = y_c + th / 2 - oh / 2 + 0.03 * th
+            ow, oh = tw * float(rng.uniform(1.5, 4.0)), th * float(rng.uniform(0.3, 0.6))
         else:
-            ow, oh = float(max(2.0, tw * rng.uniform(0.1, 0.35))), float(th * rng.uniform(1.5, 3.0))
-            oy = y_c + th / 2 - oh / 2 + 0.05 * th
+            ow, oh = max(2.0, tw * float(rng.uniform(0.1, 0.35))), th * float(rng.uniform(1.5, 3.0))
         colour = tuple(int(v) for v in rng.integers(60, 200, 3))
-        ox = float(x_c)
+        ox, oy = float(x1[tc]), row - oh / 2  # type: ignore[index]
         roles[len(actors)] = "occluder"
-        actors.append(Actor("pillar", ow, (lambda t, ox=ox, oy=oy: (ox, oy, 1.0)), depth=50.0, height_px=oh,
+        actors.append(Actor("pillar", ow, (lambda t, ox=ox, oy=oy: (ox, oy, 1.0)), depth=row, height_px=oh,
                             body_color=colour, ir_contrast=float(rng.uniform(-10, 10)), name=f"occluder ({kind})"))  # type: ignore[arg-type]
         events.append({"event": "occluder", "kind": kind, "frame": tc + 1, "box": [round(ox - ow / 2, 1), round(oy - oh / 2, 1),
                                                                                    round(ow, 1), round(oh, 1)]})
@@ -478,7 +481,8 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
             factor = float(rng.uniform(0.25, 0.65))
             soft = float(rng.uniform(1.0, 6.0))
             tc = int(rng.uniform(0.15, 0.85) * n)
-            x_c, y_c = pos1[tc]
+            x_c, y_c = float(x1[tc]), float(feet1[tc] - 0.5 * h1[tc])  # type: ignore[index,operator]
+            s_w, s_h = float(_body(a1.kind, float(h1[tc])).w), float(h1[tc])  # type: ignore[index]
             if kind == "building":  # a parallelogram with one sharp straight edge across the ground
                 bw, mh = float(rng.uniform(0.3, 0.9) * W), int(H - horizon + 10)
                 skew = float(rng.uniform(-0.6, 0.6) * mh)
@@ -489,7 +493,7 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
                 cv2.fillPoly(m, [pts.round().astype(np.int32)], 1.0, cv2.LINE_AA)
                 pos0 = (float(x_c - mw / 2 + rng.uniform(-0.3, 0.3) * bw), float(horizon))
             elif kind == "tree":
-                mw, mh = int(max(size1[tc, 0] * rng.uniform(2, 5), 20)), int(max(size1[tc, 1] * rng.uniform(0.8, 2.0), 20))
+                mw, mh = int(max(s_w * rng.uniform(2, 5), 20)), int(max(s_h * rng.uniform(0.8, 2.0), 20))
                 m = np.zeros((mh, mw), np.float32)
                 for _ in range(int(rng.integers(3, 8))):
                     cv2.ellipse(m, (int(rng.uniform(0.2, 0.8) * mw), int(rng.uniform(0.2, 0.8) * mh)),
@@ -497,7 +501,7 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
                                 float(rng.uniform(0, 180)), 0, 360, 1.0, -1, cv2.LINE_AA)
                 pos0 = (float(x_c - mw / 2), float(y_c - mh / 2))
             else:
-                mw, mh = int(max(size1[tc, 0] * rng.uniform(1.5, 4), 16)), int(max(size1[tc, 1] * rng.uniform(0.6, 1.5), 16))
+                mw, mh = int(max(s_w * rng.uniform(1.5, 4), 16)), int(max(s_h * rng.uniform(0.6, 1.5), 16))
                 m = np.zeros((mh, mw), np.float32)
                 cv2.ellipse(m, (mw // 2, mh // 2), (mw // 2 - 1, mh // 2 - 1), 0, 0, 360, 1.0, -1, cv2.LINE_AA)
                 pos0 = (float(x_c - mw / 2), float(y_c - mh / 2))
@@ -513,27 +517,17 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
             events.append({"event": "shadow", "kind": kind, "frame": tc + 1, "depth": round(1 - factor, 3),
                            "size": [mw, mh], "softness_px": round(soft, 1)})
 
-    # illumination: a ramp down towards darkness (and maybe back) and flicker. Fairness rule of the family:
-    # the channels complement each other, so the visible channel does not go dark while a target's IR has
-    # faded (a crossover episode), and a scene that goes dark keeps its targets warm.
+    # illumination: a ramp down towards darkness (and maybe back) and flicker
     gain0 = float(rng.uniform(0.75, 1.15)) if not night else float(rng.uniform(0.45, 0.8))
     ramp = None
     if rng.random() < 0.35:
         r0 = float(rng.uniform(0.1, 0.6) * n)
         r1 = r0 + float(rng.uniform(20, 80))
         low = float(rng.uniform(0.03, 0.35))
-        back = bool(rng.random() < 0.4)
-        r2 = r1 + float(rng.uniform(20, 60)) if back else None
-        dark = (r0 + 0.5 * (r1 - r0), r2 + 30.0 if r2 is not None else float(n + 1))
-        clashes = any(c is not None and c[0] < dark[1] and c[1] + 10.0 > dark[0] for c in crossovers)
-        if not clashes:
-            ramp = (r0, r1, low, r2)
-            events.append({"event": "illumination-ramp", "frames": [round(r0) + 1, round(r1) + 1], "low": round(low, 3),
-                           "recovers_at": round(r2) + 1 if r2 else None})
-            for i, a in enumerate(actors):
-                if roles.get(i) == "target" and a.ir_contrast < 40.0:
-                    actors[i] = dataclasses.replace(a, ir_contrast=40.0)
-                    target_params[a.target_id - 1]["ir_contrast"] = 40.0
+        r2 = r1 + float(rng.uniform(20, 60)) if rng.random() < 0.4 else None
+        ramp = (r0, r1, low, r2)
+        events.append({"event": "illumination-ramp", "frames": [round(r0) + 1, round(r1) + 1], "low": round(low, 3),
+                       "recovers_at": round(r2) + 1 if r2 else None})
     flicker = np.ones(n + 2)
     if rng.random() < 0.2:
         for _ in range(int(rng.integers(2, 8))):
@@ -549,6 +543,37 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
             if r2 is not None and t > r2:
                 g = g0 * (low + (1.0 - low) * float(_smoothstep(np.array((t - r2) / 30.0))))
         return g * float(flicker[min(int(t), n + 1)])
+
+    # The family's fairness rule: the channels complement each other. Where a target stands in darkness (the
+    # illumination and the shadows over it leave under 0.35 of the light), its IR has not faded: a crossover
+    # episode is moved to frames in the light or dropped, and a target that meets darkness is warm (>= 40).
+    for tr in tracks:
+        light = np.array([illumination(float(t + 1)) for t in range(n)])
+        cy_t = tr["feet"] - 0.5 * tr["h"]  # type: ignore[operator]
+        for ms in shadows:
+            for t in range(n):
+                ox, oy = ms.path(float(t + 1))
+                mx, my = int(round(float(tr["x"][t]) - round(ox))), int(round(float(cy_t[t]) - round(oy)))  # type: ignore[index]
+                if 0 <= my < ms.mask.shape[0] and 0 <= mx < ms.mask.shape[1]:
+                    light[t] *= 1.0 - (1.0 - ms.factor) * float(ms.mask[my, mx])
+        dark = light < 0.35
+        i = int(tr["actor"])  # type: ignore[call-overload]
+        tid = actors[i].target_id
+        c = tr["crossover"]
+        if c is not None:
+            length = c[1] - c[0]
+            free = [s for s in range(12, n - int(length) - 12)
+                    if not dark[max(s - 2, 0): min(int(s + length + 12), n)].any()]
+            if free:
+                s0 = min(free, key=lambda s: abs(s - c[0]))
+                c = (float(s0), float(s0) + length, c[2])
+            else:
+                c = None
+            actors[i] = dataclasses.replace(actors[i], ir_factor=_crossover_fn(c))
+            target_params[tid - 1]["crossover"] = [round(c[0]) + 1, round(c[1]) + 1, round(c[2], 3)] if c else None
+        if dark.any() and actors[i].ir_contrast < 40.0:
+            actors[i] = dataclasses.replace(actors[i], ir_contrast=40.0)
+            target_params[tid - 1]["ir_contrast"] = 40.0
 
     # sensor
     jitter = None
@@ -578,9 +603,35 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
                   f"{', '.join(str(e['event']) for e in events) or 'no events'}", W, H, n, tuple(actors),
                   illumination=illumination, vis_noise=vis_noise, ir_noise=ir_noise, ir_ambient=ambient,
                   background_images=(bg.visible, bg.infrared), mask_shadows=tuple(shadows), sensor=sensor,
-                  clip_truth=True, min_in_frame=0.1)
+                  clip_truth=True, min_in_frame=0.1, mask_truth=True)
     render_seed = int(rng.integers(1 << 31))
     return DrawnScene(scene, params, render_seed, quality, roles)
+
+
+def _array_depth(feet: np.ndarray) -> Callable[[float], float]:
+    """Depth order from the ground row: lower in the image is nearer."""
+    frames = np.arange(1, feet.shape[0] + 1, dtype=np.float64)
+    rows = feet.copy()
+    return lambda t: float(np.interp(t, frames, rows))
+
+
+def _crossover_fn(c: tuple[float, float, float] | None) -> Callable[[float], float] | None:
+    """IR contrast factor of a crossover episode ``(start, end, low)``: 10-frame ramps down to ``low`` and back."""
+    if c is None:
+        return None
+    c0, c1, low = c
+
+    def ir_factor(t: float) -> float:
+        ramp = 10.0
+        if t < c0 or t > c1 + ramp:
+            return 1.0
+        if t < c0 + ramp:
+            return 1.0 + (low - 1.0) * float(_smoothstep(np.array((t - c0) / ramp)))
+        if t <= c1:
+            return low
+        return low + (1.0 - low) * float(_smoothstep(np.array((t - c1) / ramp)))
+
+    return ir_factor
 
 
 # ---------------------------------------------------------------------------------------------- per-frame attributes

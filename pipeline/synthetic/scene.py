@@ -135,7 +135,10 @@ class Scene:
     default facade-and-pavement background; ``clip_truth``: boxes are clipped to the frame
     (the visible extent, as annotators draw it) and a target with less than
     ``min_in_frame`` of its box inside has no truth (default: the amodal box, absent only
-    when wholly outside).
+    when wholly outside); ``mask_truth``: the truth of each channel is the pixel box of the
+    target's rendered silhouette there (its own alpha >= 0.5, amodal: occluders do not cut
+    it, moved with the camera jitter and, in infrared, the misregistration) instead of the
+    warped box of the high-resolution sprite, which thin limbs can overhang by a pixel or two.
     """
 
     name: str
@@ -155,6 +158,7 @@ class Scene:
     sensor: Sensor = field(default_factory=Sensor)
     clip_truth: bool = False
     min_in_frame: float = 0.0
+    mask_truth: bool = False
 
 
 def _smooth_noise(rng: np.random.Generator, h: int, w: int, sigma: float) -> np.ndarray:
@@ -342,10 +346,27 @@ class Renderer:
         return (ix0, iy0, ix1 - ix0, iy1 - iy0), frac
 
     @staticmethod
-    def _shift(img: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    def _shift(img: np.ndarray, dx: float, dy: float, border: int = cv2.BORDER_REFLECT_101) -> np.ndarray:
         M = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], np.float64)
-        return cv2.warpAffine(img, M, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_REFLECT_101)
+        return cv2.warpAffine(img, M, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR, borderMode=border)
+
+    def _mask_box(self, crop: tuple[int, int, np.ndarray], dx: float, dy: float
+                  ) -> tuple[float, float, float, float] | None:
+        """Pixel box of a target's alpha >= 0.5 after moving it by (dx, dy), inside the frame (None if empty)."""
+        x0, y0, alpha = crop
+        pad = int(np.ceil(max(abs(dx), abs(dy)))) + 2
+        a = cv2.copyMakeBorder(alpha, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+        if dx or dy:
+            a = self._shift(a, dx, dy, border=cv2.BORDER_CONSTANT)
+        ys, xs = np.nonzero(a >= 0.5)
+        if xs.size == 0:
+            return None
+        w, h = self.scene.width, self.scene.height
+        bx0, by0 = max(int(xs.min()) + x0 - pad, 0), max(int(ys.min()) + y0 - pad, 0)
+        bx1, by1 = min(int(xs.max()) + 1 + x0 - pad, w), min(int(ys.max()) + 1 + y0 - pad, h)
+        if bx1 <= bx0 or by1 <= by0:
+            return None
+        return (float(bx0), float(by0), float(bx1 - bx0), float(by1 - by0))
 
     def render_frame(self, t: int, masks: bool = False) -> RenderedFrame:
         """Frame ``t`` (1-based) with its truth per channel; ``masks`` adds each target's amodal alpha."""
@@ -358,6 +379,7 @@ class Renderer:
         own_area: dict[int, int] = {}
         boxes: dict[int, tuple[float, float, float, float]] = {}
         alphas: dict[int, np.ndarray] = {}
+        crops: dict[int, tuple[int, int, np.ndarray]] = {}  # target id -> (x0, y0, alpha of its crop)
         order = sorted(range(len(sc.actors)), key=lambda i: sc.actors[i].depth_at(t))
         placements = {i: self._placement(i, float(t)) for i in range(len(sc.actors))}
         for i in order:
@@ -394,6 +416,8 @@ class Renderer:
             owner[y0:y1, x0:x1][solid] = code
             if a.target_id > 0:
                 own_area[a.target_id] = int(solid.sum())
+                if sc.mask_truth:
+                    crops[a.target_id] = (x0, y0, alpha)
                 if masks:
                     full = np.zeros((h, w), np.float32)
                     full[y0:y1, x0:x1] = alpha
@@ -425,7 +449,7 @@ class Renderer:
         if jx or jy:
             vis = self._shift(vis, jx, jy)
             for tid in alphas:
-                alphas[tid] = self._shift(alphas[tid], jx, jy)
+                alphas[tid] = self._shift(alphas[tid], jx, jy, border=cv2.BORDER_CONSTANT)
         if ix or iy:
             ir = self._shift(ir, ix, iy)
         vis = cv2.GaussianBlur(vis, (0, 0), sen.vis_blur_px)
@@ -445,6 +469,11 @@ class Renderer:
         for tid, box in boxes.items():
             truth_vis[tid], in_frame[tid] = self._truth_box(box, jx, jy)
             truth_ir[tid], _ = self._truth_box(box, ix, iy)
+            if sc.mask_truth:
+                crop = crops.get(tid)
+                for tb, (dx, dy) in ((truth_vis, (jx, jy)), (truth_ir, (ix, iy))):
+                    if tb[tid] is not None:
+                        tb[tid] = self._mask_box(crop, dx, dy) if crop is not None else None
             area = own_area.get(tid, 0)
             visible = int((owner == tid).sum())
             visibility[tid] = (visible / area) if area else 0.0
