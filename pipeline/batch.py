@@ -33,6 +33,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -174,13 +175,23 @@ def _last_error_line(stderr: str) -> str:
     for ln in reversed(lines):
         if ln.startswith("dualtrack: error:"):
             return ln[len("dualtrack: error:"):].strip()
+        if ln.startswith("dualtrack: internal error:"):
+            return ln[len("dualtrack: "):].strip()
     return lines[-1] if lines else ""
+
+
+STOP_GRACE_S = 15.0
+"""Seconds a stopped child gets to close its outputs after SIGTERM before it is killed."""
 
 
 def run_process(cmd: list[str], timeout_s: float | None, procs: set[subprocess.Popen] | None = None,
                 lock: threading.Lock | None = None) -> tuple[int, str]:
-    """Run ``cmd`` single-threaded; ``(return code, error line)``. Tracks the process in ``procs``."""
-    env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1"}
+    """Run ``cmd`` single-threaded; ``(return code, error line)``. Tracks the process in ``procs``.
+
+    The child dies with this process (``DUALTRACK_DIE_WITH_PARENT``: it asks the kernel for a
+    SIGTERM when its parent goes, ``pipeline.cli``); a timeout stops it with SIGTERM first, so its
+    outputs are closed, and kills it only if it has not ended ``STOP_GRACE_S`` later."""
+    env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1", "DUALTRACK_DIE_WITH_PARENT": str(os.getpid())}
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                          start_new_session=True)
     if procs is not None and lock is not None:
@@ -190,9 +201,9 @@ def run_process(cmd: list[str], timeout_s: float | None, procs: set[subprocess.P
         try:
             _out, err = p.communicate(timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            _kill(p)
+            stop_process(p)
             p.communicate()
-            return -1, f"timed out after {timeout_s:g} s"
+            return -1, f"timed out after {timeout_s:g} s (stopped; its outputs hold the frames done)"
     finally:
         if procs is not None and lock is not None:
             with lock:
@@ -207,11 +218,23 @@ def run_process(cmd: list[str], timeout_s: float | None, procs: set[subprocess.P
     return rc, _last_error_line(err) if rc else ""
 
 
-def _kill(p: subprocess.Popen) -> None:
+def _signal(p: subprocess.Popen, sig: int) -> None:
     try:
-        os.killpg(p.pid, signal.SIGKILL)
+        os.killpg(p.pid, sig)
     except (ProcessLookupError, PermissionError):
-        p.kill()
+        try:
+            p.send_signal(sig)
+        except ProcessLookupError:
+            pass
+
+
+def stop_process(p: subprocess.Popen, grace_s: float = STOP_GRACE_S) -> None:
+    """SIGTERM (the child's run loop closes its outputs and writes summary.json), SIGKILL if it lingers."""
+    _signal(p, signal.SIGTERM)
+    try:
+        p.wait(timeout=grace_s)
+    except subprocess.TimeoutExpired:
+        _signal(p, signal.SIGKILL)
 
 
 def _load_summary(run_dir: Path) -> dict[str, object]:
@@ -253,8 +276,15 @@ def run_local(tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskRe
                     pending.add(pool.submit(_local_task, task, opts, procs, lock))
     except BaseException:
         with lock:
-            for p in list(procs):  # Ctrl-C: stop the running sequences (they stay incomplete)
-                _kill(p)
+            running = list(procs)
+        for p in running:  # Ctrl-C / SIGTERM: stop the running sequences; they close their outputs (incomplete)
+            _signal(p, signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE_S
+        for p in running:
+            try:
+                p.wait(timeout=max(deadline - time.monotonic(), 0.1))
+            except subprocess.TimeoutExpired:
+                _signal(p, signal.SIGKILL)
         pool.shutdown(wait=True, cancel_futures=True)
         raise
     pool.shutdown(wait=True)
@@ -345,6 +375,23 @@ def run_dask(tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskRes
         client.close()
 
 
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM stops a batch as Ctrl-C does (children stopped, report written); outside the main thread, nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 @dataclass
 class BatchResult:
     """The results of a batch, in task order, and where the report is."""
@@ -358,7 +405,7 @@ class BatchResult:
 def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
     """Plan, run (locally or on Dask), report. See the module doc."""
     from pipeline.progress import Progress
-    from pipeline.sinks.report import write_report
+    from pipeline.sinks.report import write_progress_report, write_report
 
     from pipeline.eval.protocols import PROTOCOLS
 
@@ -370,9 +417,16 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
         raise InputError(f"--export must be one of {', '.join(EXPORT_FORMATS)}; got {opts.export!r}")
     if opts.workers is not None and opts.workers < 1:
         raise InputError(f"--workers must be at least 1; got {opts.workers}")
+    if opts.timeout_s is not None and not opts.timeout_s > 0:
+        raise InputError(f"--timeout must be a positive number of seconds; got {opts.timeout_s:g}")
+    from pipeline.config import load_config
+
+    load_config(opts.config_path, list(opts.sets))  # a bad --set or config file stops the batch before it starts
     root, out = Path(root), Path(out)
     tasks = plan(root, out, opts)
-    out.mkdir(parents=True, exist_ok=True)
+    from pipeline.runloop import prepare_out_dir
+
+    prepare_out_dir(out, True, ())
     results: dict[str, TaskResult] = {}
     todo = []
     for t in tasks:
@@ -396,10 +450,13 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
             frames += int(r.summary.get("frames", 0) or 0)  # type: ignore[call-overload]
             rate = frames / max(time.perf_counter() - t0, 1e-9)
             bar.update(1, done=counts["done"], failed=counts["failed"], frames_per_s=f"{rate:.1f}")
+            write_progress_report(out, [results[t.key] for t in tasks if t.key in results], opts, len(tasks),
+                                  time.perf_counter() - t0)
 
         try:
-            if todo:
-                (run_dask if opts.scheduler else run_local)(todo, opts, on_result)
+            with _sigterm_as_interrupt():
+                if todo:
+                    (run_dask if opts.scheduler else run_local)(todo, opts, on_result)
         except KeyboardInterrupt:
             interrupted = True
     wall = time.perf_counter() - t0

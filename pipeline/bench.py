@@ -79,8 +79,12 @@ def run_bench(
     rows: list[dict[str, object]] = []
     try:
         for sd in seq_dirs:
-            dec_fps, n_frames = decode_rate(sd, repeat, **open_kw)
             seq_name = Path(sd).name
+            try:
+                dec_fps, n_frames = decode_rate(sd, repeat, **open_kw)
+            except InputError as exc:  # an unreadable sequence: reported, the others still run
+                rows.append({"sequence": seq_name, "tracker": "-", "failed": str(exc)})
+                continue
             for name in names:
                 row: dict[str, object] = {"sequence": seq_name, "tracker": name, "frames": n_frames,
                                           "fps_decode": round(dec_fps, 1), "repeat": repeat}
@@ -97,10 +101,18 @@ def run_bench(
                         sets=list(sets or []), config_path=config_path, **open_kw,  # type: ignore[arg-type]
                     ))
                     s = res.summary
+                    if res.error or res.interrupted:
+                        break
                     fps_trk += [float(s["fps_tracking"])] if s.get("fps_tracking") else []
                     fps_e2e += [float(s["fps_end_to_end"])] if s.get("fps_end_to_end") else []
                     if fastest is None or float(s.get("fps_tracking") or 0) > float(fastest.get("fps_tracking") or 0):
                         fastest = s
+                if res.error or res.interrupted:
+                    row["failed"] = res.error or "interrupted"
+                    rows.append(row)
+                    if res.interrupted:
+                        raise KeyboardInterrupt
+                    continue
                 m = s.get("metrics") or {}
                 row.update({
                     "p20": m.get("p20") if isinstance(m, dict) else None,
@@ -216,7 +228,10 @@ def format_table(rows: list[dict[str, object]]) -> str:
     def f(v: object, nd: int = 3) -> str:
         return f"{v:.{nd}f}" if isinstance(v, float) else ("" if v is None else str(v))
 
+    failed = [r for r in rows if "failed" in r]
     for r in rows:
+        if "failed" in r:
+            continue
         if "skipped" in r:
             lines.append(f"| {r['sequence']} | {r['tracker']} | skipped: {r['skipped']} |" + "  |" * (len(head) - 3))
             continue
@@ -227,6 +242,10 @@ def format_table(rows: list[dict[str, object]]) -> str:
         if multi:
             cells += [f(r.get("purity")), f(r.get("id_switches")), f(r.get("mota")), f(r.get("idf1"))]
         lines.append("| " + " | ".join(cells) + " |")
+    if failed:
+        lines += ["", f"{len(failed)} failed:"] + [f"- {r['sequence']}"
+                                                  + (f" / {r['tracker']}" if r["tracker"] != "-" else "")
+                                                  + f": {r['failed']}" for r in failed]
     return "\n".join(lines)
 
 
@@ -310,7 +329,7 @@ def run_random_bench(count: int | None = None, split: str = "test", seeds: range
         attr_counts: dict[str, list[dict[str, dict[str, object]]]] = {}
         for r in rows:
             r["seed"] = seed_of.get(str(r["sequence"]))
-            if "skipped" in r:
+            if "skipped" in r or "failed" in r:
                 continue
             d = by_dir[str(r["sequence"])]
             run = Path(out) / "runs" / str(r["tracker"]) / d.name
@@ -346,11 +365,12 @@ def score_distribution(rows: list[dict[str, object]]) -> dict[str, dict[str, obj
     import numpy as np
 
     out: dict[str, dict[str, object]] = {}
-    trackers = list(dict.fromkeys(str(r["tracker"]) for r in rows))
+    trackers = list(dict.fromkeys(str(r["tracker"]) for r in rows if r["tracker"] != "-"))
     for t in trackers:
-        mine = [r for r in rows if r["tracker"] == t and "skipped" not in r]
+        mine = [r for r in rows if r["tracker"] == t and "skipped" not in r and "failed" not in r]
         if not mine:
-            out[t] = {"skipped": next(r.get("skipped") for r in rows if r["tracker"] == t)}
+            why = next((r.get("skipped") or r.get("failed") for r in rows if r["tracker"] == t), "no runs")
+            out[t] = {"skipped": why}
             continue
         d: dict[str, object] = {"scenes": len(mine)}
         for key in ("p20", "auc", "purity", "idf1", "mota"):

@@ -144,17 +144,28 @@ def _cmd_track(a: argparse.Namespace) -> int:
         rrd=not a.no_rrd, plots=not a.no_plots, protocol=a.protocol, force=a.force, stop_frame=a.frames,
     ))
     s = res.summary
+    _warn(s.get("warnings"))
     line = f"{res.out_dir}: {s['frames']}/{s['frames_total']} frames, {s['tracker']}, fps_tracking {s['fps_tracking']}"
     m = s.get("metrics")
     if isinstance(m, dict):
         parts = [f"{k} {m[k]:.3f}" for k in ("p20", "auc", "mpr", "msr", "pr", "sr", "mota", "idf1") if isinstance(m.get(k), float)]
         line += ", " + ", ".join(parts)
     print(line)
-    if res.error:
-        print(f"{PROG}: error: {res.error} (results for the {s['frames']} frames before it are in {res.out_dir})", file=sys.stderr)
+    return _ending(res.error, res.interrupted, int(s["frames"]), res.out_dir)
+
+
+def _warn(warnings: object) -> None:
+    for w in warnings if isinstance(warnings, list) else []:
+        print(f"{PROG}: warning: {w}", file=sys.stderr)
+
+
+def _ending(error: str | None, interrupted: bool, frames: int, out: Path) -> int:
+    """The exit status of a run, with its one line on stderr (the run loop kept every output valid)."""
+    if error:
+        print(f"{PROG}: error: {error} (results for the {frames} frames before it are in {out})", file=sys.stderr)
         return 1
-    if res.interrupted:
-        print(f"{PROG}: interrupted after {s['frames']} frames; outputs in {res.out_dir} are valid", file=sys.stderr)
+    if interrupted:
+        print(f"{PROG}: interrupted after {frames} frames; outputs in {out} are valid", file=sys.stderr)
         return 130
     return 0
 
@@ -166,6 +177,7 @@ def _cmd_evaluate(a: argparse.Namespace) -> int:
 
     m = evaluate_files(a.seq_dir, a.tracks_csv, a.protocol, a.ids, a.mot_rule, channel=a.channel, align=a.align,
                        gt_base=a.gt_base)
+    _warn(m.get("warnings"))
     if a.json:
         print(json.dumps(m))
         return 0
@@ -256,6 +268,12 @@ def _cmd_bench(a: argparse.Namespace) -> int:
     from pipeline.errors import InputError
 
     trackers = [t.strip() for t in (a.trackers or "").split(",") if t.strip()] or None
+    if a.trackers is not None and not trackers:
+        raise InputError(f"--trackers names no tracker: {a.trackers!r}")
+    if a.json is not None and a.json.is_dir():
+        raise InputError(f"--json {a.json} is a folder; give a file name")
+    if a.repeat < 1:
+        raise InputError(f"--repeat must be an integer >= 1; got {a.repeat}")
     if a.random is not None or a.seeds is not None:
         from pipeline.bench import format_distribution, run_random_bench
         from pipeline.synthetic.family import parse_seed_range, parse_target_count
@@ -288,7 +306,7 @@ def _cmd_bench(a: argparse.Namespace) -> int:
     rows = run_bench(a.seq_dirs, trackers, out=a.out, json_path=a.json, sets=a.set, config_path=a.config,
                      repeat=a.repeat, channel=a.channel, align=a.align, gt_base=a.gt_base)
     print(format_table(rows))
-    return 0
+    return 1 if any("failed" in r for r in rows) else 0
 
 
 def _cmd_batch(a: argparse.Namespace) -> int:
@@ -296,6 +314,12 @@ def _cmd_batch(a: argparse.Namespace) -> int:
     from pipeline.trackers import DEFAULT_TRACKER
 
     trackers = tuple(t.strip() for t in (a.trackers or DEFAULT_TRACKER).split(",") if t.strip())
+    from pipeline.errors import InputError
+
+    if not trackers:
+        raise InputError(f"--trackers names no tracker: {a.trackers!r}")
+    if a.timeout is not None and not a.timeout > 0:
+        raise InputError(f"--timeout must be a positive number of seconds; got {a.timeout:g}")
     opts = BatchOptions(trackers=trackers, workers=a.workers, scheduler=a.scheduler, force=a.force,
                         protocol=a.protocol, export=a.export, sets=tuple(a.set), config_path=a.config,
                         rrd=not a.no_rrd, ship_frames=a.ship_frames, timeout_s=a.timeout)
@@ -315,12 +339,18 @@ def _cmd_detect(a: argparse.Namespace) -> int:
     res = run_detect(a.seq_dir, a.out, a.set, a.config, rrd=not a.no_rrd, force=a.force, channel=a.channel,
                      align=a.align, gt_base=a.gt_base)
     s = res.summary
-    line = (f"{res.out_dir}: {s['frames']} frames, {s['detections_per_frame']:.2f} detections per frame, "
-            f"{s['ms_per_frame']} ms per frame")
-    if s.get("recall") is not None:
-        line += f", recall {s['recall']:.3f}, precision {s['precision']:.3f} ({s['targets_scored']} visible targets)"
+    _warn(s.get("warnings"))
+
+    def f(key: str, nd: int) -> str:
+        v = s.get(key)
+        return f"{v:.{nd}f}" if isinstance(v, int | float) else "n/a"
+
+    line = f"{res.out_dir}: {s['frames']} frames, {f('detections_per_frame', 2)} detections per frame, " \
+           f"{f('ms_per_frame', 3)} ms per frame"
+    if "targets_scored" in s:
+        line += f", recall {f('recall', 3)}, precision {f('precision', 3)} ({s['targets_scored']} visible targets)"
     print(line)
-    return 0
+    return _ending(res.error, res.interrupted, int(s["frames"]), res.out_dir)
 
 
 def _cmd_trackers(_a: argparse.Namespace) -> int:
@@ -339,8 +369,27 @@ COMMANDS = {"track": _cmd_track, "evaluate": _cmd_evaluate, "synth": _cmd_synth,
             "batch": _cmd_batch, "detect": _cmd_detect, "trackers": _cmd_trackers}
 
 
+def _die_with_parent() -> None:
+    """A batch's child (``DUALTRACK_DIE_WITH_PARENT=<batch pid>``) asks Linux for a SIGTERM when the batch dies,
+    so a killed batch leaves no orphan: the run loop then closes its outputs as on Ctrl-C."""
+    parent = os.environ.get("DUALTRACK_DIE_WITH_PARENT")
+    if not parent or not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+        import signal
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if str(os.getppid()) != parent:  # the batch died before the request took effect
+        raise SystemExit(130)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    _die_with_parent()
     if argv and argv[0] == "bench":  # one core, before numpy/OpenCV start their thread pools
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
             os.environ[var] = "1"
@@ -358,10 +407,17 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 1
+    except OSError as exc:  # a file or folder the system refused: say which and why
+        from pipeline.errors import describe_os_error
+
+        print(f"{PROG}: error: {describe_os_error(exc)}", file=sys.stderr)
+        return 1
     except Exception as exc:  # unexpected: still one line unless debugging
         if os.environ.get("DUALTRACK_DEBUG"):
             raise
-        print(f"{PROG}: internal error: {type(exc).__name__}: {exc} (set DUALTRACK_DEBUG=1 for the traceback)", file=sys.stderr)
+        text = " ".join(str(exc).split())  # one line, whatever the exception's message holds
+        print(f"{PROG}: internal error: {type(exc).__name__}: {text} (set DUALTRACK_DEBUG=1 for the traceback)",
+              file=sys.stderr)
         return 1
 
 

@@ -190,9 +190,15 @@ def load_config(path: str | Path | None = None, sets: list[str] | None = None) -
     if path is not None:
         p = Path(path)
         try:
-            data = tomllib.loads(p.read_text())
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise ConfigError(f"config file not found: {p}") from None
+        except IsADirectoryError:
+            raise ConfigError(f"--config {p} is a folder, not a TOML file") from None
+        except UnicodeDecodeError:
+            raise ConfigError(f"{p}: not a TOML file (not UTF-8 text)") from None
+        except OSError as exc:
+            raise ConfigError(f"cannot read the config file {p}: {exc.strerror}") from None
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"{p}: not valid TOML ({exc})") from None
         cfg = apply_overrides(cfg, data)

@@ -5,29 +5,42 @@ Writes ``det.txt``, ``rois.csv``, ``detections.rrd`` (``pipeline.sinks.detection
 ``recall`` and ``precision``: a target counts when it is visible (visibility >= 0.9 in a
 synthetic scene's ``scene.json``, else any truth box) and no other target's box overlaps
 it, and it is found when an accepted ROI's centre lies inside its box; a ROI is correct when
-its centre lies inside any target's box).
+its centre lies inside any target's box). The frames go through the run loop of
+``pipeline.runloop``, as ``dualtrack track``'s do.
 """
 
 from __future__ import annotations
 
-import json
 import time
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from pipeline.config import config_to_dict, load_config
-from pipeline.errors import InputError
-from pipeline.io.sequence import open_sequence
-from pipeline.progress import Progress
+from pipeline.io.sequence import FramePair, open_sequence
 from pipeline.stages.detection import Detections, detect, to_grey
+
+DETECT_FILES = ("det.txt", "rois.csv", "detections.rrd", "summary.json")
 
 
 @dataclass
 class DetectResult:
     out_dir: Path
     summary: dict[str, object]
+    complete: bool = True
+    interrupted: bool = False
+    error: str | None = None
+
+
+@dataclass(frozen=True)
+class DetectItem:
+    """One frame's detections, for the sinks."""
+
+    detections: Detections
+    image: np.ndarray
+    stage_seconds: Mapping[str, float] = field(default_factory=dict)
 
 
 def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
@@ -49,74 +62,97 @@ def score_frame(d: Detections, boxes: list[np.ndarray], visible: list[bool]) -> 
     return want, found, len(d.regions), correct
 
 
+class _FilesSink:
+    def __init__(self, out: Path):
+        from pipeline.sinks.detections import DetectionFiles
+
+        self.files = DetectionFiles(out)
+
+    def write(self, frames: FramePair, item: DetectItem) -> None:
+        self.files.write(frames.index, item.detections)
+
+    def checkpoint(self) -> None:
+        self.files.checkpoint()
+
+    def close(self) -> None:
+        self.files.close()
+
+
+class _RecordingSink:
+    def __init__(self, rec: object, channel: str):
+        self.rec, self.channel = rec, channel
+
+    def write(self, frames: FramePair, item: DetectItem) -> None:
+        enc = getattr(frames, f"{self.channel}_encoded")
+        self.rec.write(frames.index, (enc.data, enc.media_type) if enc is not None else None,  # type: ignore[attr-defined]
+                       item.image, item.detections)
+
+    def checkpoint(self) -> None:
+        self.rec.checkpoint()  # type: ignore[attr-defined]
+
+    def close(self) -> None:
+        self.rec.close()  # type: ignore[attr-defined]
+
+
 def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = None, config_path: Path | None = None,
-               rrd: bool = True, force: bool = False, progress: bool | None = None, **open_kw: object) -> DetectResult:
-    from pipeline.sinks.detections import DetectionFiles, DetectionRecording
-    from pipeline.sinks.summary import write_json
+               rrd: bool = True, force: bool = False, progress: bool | None = None, threads: bool = True,
+               **open_kw: object) -> DetectResult:
+    from pipeline.runloop import Job, run_job
 
     seq = open_sequence(seq_path, **open_kw)  # type: ignore[arg-type]
     cfg = load_config(config_path, sets or [])
     ch = cfg.detection.channel if cfg.detection.channel in seq.channels else seq.channels[0]
     out = Path(out)
-    if out.exists() and any(out.iterdir()) and not force:
-        raise InputError(f"{out} already exists and is not empty; pass --force to overwrite it")
-    out.mkdir(parents=True, exist_ok=True)
     truth = seq.truth.primary() if seq.truth.has_truth else {}
-    vis: dict[str, list[float]] = {}
-    meta = seq.path / "scene.json"
-    if meta.is_file():
-        vis = json.loads(meta.read_text()).get("visibility", {})
-    files = DetectionFiles(out)
-    rec = DetectionRecording(out / "detections.rrd", ch, seq.name, cfg.detection.min_std) if rrd else None
+    vis = seq.meta.get("visibility", {})
+    vis = vis if isinstance(vis, dict) else {}
     counts = np.zeros(4, int)
     per_frame: list[int] = []
-    det_s = 0.0
-    error = None
-    interrupted = False
-    try:
-        with Progress(seq.n_frames, f"detect {seq.name}", enabled=progress) as bar:
-            for fp in seq.frames():
-                img = getattr(fp, ch)
-                t0 = time.perf_counter()
-                d = detect(to_grey(img), cfg.detection)
-                det_s += time.perf_counter() - t0
-                files.write(fp.index, d)
-                if rec is not None:
-                    enc = getattr(fp, f"{ch}_encoded")
-                    rec.write(fp.index, (enc.data, enc.media_type) if enc is not None else None, img, d)
-                per_frame.append(len(d.regions))
-                if truth:
-                    i = fp.index - 1
-                    ids = [g for g, b in truth.items() if not np.isnan(b[i]).any()]
-                    boxes = [truth[g][i] for g in ids]
-                    visible = [vis.get(str(g), [1.0] * seq.n_frames)[i] >= 0.9 for g in ids]
-                    counts += score_frame(d, boxes, visible)
-                bar.update(1)
-    except KeyboardInterrupt:
-        interrupted = True
-    except InputError as e:
-        error = str(e)
-    finally:
-        files.close()
-        if rec is not None:
-            rec.close()
-    n = len(per_frame)
+    det_s = [0.0]
+
+    def step(fp: FramePair) -> DetectItem:
+        img = getattr(fp, ch)
+        t0 = time.perf_counter()
+        d = detect(to_grey(img), cfg.detection)
+        dt = time.perf_counter() - t0
+        det_s[0] += dt
+        per_frame.append(len(d.regions))
+        if truth:
+            i = fp.index - 1
+            ids = [g for g, b in truth.items() if not np.isnan(b[i]).any()]
+            boxes = [truth[g][i] for g in ids]
+            visible = [vis.get(str(g), [1.0] * seq.n_frames)[i] >= 0.9 for g in ids]
+            counts[:] += score_frame(d, boxes, visible)
+        return DetectItem(d, img, {"detection": dt})
+
+    def make_sinks() -> list:
+        sinks: list = [_FilesSink(out)]
+        if rrd:
+            from pipeline.sinks.detections import DetectionRecording
+
+            sinks.append(_RecordingSink(DetectionRecording(out / "detections.rrd", ch, seq.name, cfg.detection.min_std),
+                                        ch))
+        return sinks
+
+    def finish(stats) -> dict[str, object]:
+        n = stats.frames
+        extra: dict[str, object] = {
+            "detections_per_frame": float(np.mean(per_frame[:n])) if n else 0.0,
+            "ms_per_frame": round(1e3 * det_s[0] / max(len(per_frame), 1), 3),
+            "fps": round(len(per_frame) / det_s[0], 1) if det_s[0] > 0 else None,
+        }
+        if truth:
+            extra.update({"targets_scored": int(counts[0]),
+                          "recall": float(counts[1] / counts[0]) if counts[0] else None,
+                          "precision": float(counts[3] / counts[2]) if counts[2] else None})
+        return extra
+
     summary: dict[str, object] = {
-        "sequence": seq.name, "channel": ch, "frames": n, "frames_total": seq.n_frames,
-        "complete": n == seq.n_frames and error is None and not interrupted,
-        "detections_per_frame": float(np.mean(per_frame)) if per_frame else 0.0,
-        "ms_per_frame": round(1e3 * det_s / max(n, 1), 3), "fps": round(n / det_s, 1) if det_s > 0 else None,
+        "sequence": seq.name, "channel": ch, "frames": 0, "frames_total": seq.n_frames,
         "config": config_to_dict(cfg)["detection"],
     }
-    if truth and n:
-        summary.update({"targets_scored": int(counts[0]),
-                        "recall": float(counts[1] / counts[0]) if counts[0] else None,
-                        "precision": float(counts[3] / counts[2]) if counts[2] else None})
-    if error:
-        summary["error"] = error
-    write_json(out / "summary.json", summary)
-    if error:
-        raise InputError(f"{error} (detections for the {n} frames before it are in {out})")
-    if interrupted:
-        raise KeyboardInterrupt
-    return DetectResult(out, summary)
+    if seq.warnings:
+        summary["warnings"] = list(seq.warnings)
+    res = run_job(Job(f"detect {seq.name}", seq, out, DETECT_FILES, step, make_sinks, summary, finish, force=force,
+                      progress=progress, threads=threads, rate_label="fps"))
+    return DetectResult(out, res.summary, res.complete, res.stats.interrupted, res.stats.error)

@@ -2,20 +2,15 @@
 
 :func:`iter_track` is the bare loop (no files), :func:`track` collects its results, and
 :func:`run_track` is ``dualtrack track``: it writes the run folder (``tracks.csv``,
-``targets.csv``, ``run.rrd``, ``summary.json``, ``plots/``). A run stopped by Ctrl-C or
-by a bad frame still closes every sink, so the CSVs and the .rrd are valid for the frames
-done and ``summary.json`` says ``"complete": false``.
+``targets.csv``, ``run.rrd``, ``summary.json``, ``plots/``) through the run loop of
+``pipeline.runloop``, which decodes, tracks and writes at once and keeps every output valid
+after any fault (a run stopped by a signal or a bad frame says ``"complete": false``).
 """
 
 from __future__ import annotations
 
-import json
-import shutil
-import signal
-import threading
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,7 +21,6 @@ from pipeline.config import PipelineConfig, config_to_dict, load_config
 from pipeline.errors import InputError
 from pipeline.io.init import resolve_init
 from pipeline.io.sequence import FramePair, Sequence, open_sequence
-from pipeline.progress import Progress
 from pipeline.trackers import DEFAULT_TRACKER, Engine, make_tracker
 from pipeline.types import BBox, FrameResult, FrameTruth, InitTarget, TruthMatch
 
@@ -97,6 +91,8 @@ class RunOptions:
     force: bool = False
     progress: bool | None = None
     stop_frame: int | None = None
+    config: PipelineConfig | None = None
+    threads: bool = True
 
 
 @dataclass
@@ -107,31 +103,6 @@ class RunResult:
     interrupted: bool = False
     error: str | None = None
     boxes: dict[int, np.ndarray] = field(default_factory=dict)
-
-
-def _prepare_out_dir(out: Path, force: bool) -> None:
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
-    if out.exists() and any(out.iterdir()):
-        if not force:
-            raise InputError(f"run folder {out} already exists and is not empty; pass --force to overwrite it")
-        for name in RUN_FILES:
-            p = out / name
-            if p.is_dir():
-                shutil.rmtree(p)
-            elif p.exists():
-                p.unlink()
-    out.mkdir(parents=True, exist_ok=True)
-
-
-def _scene_seed(seq: Sequence) -> int | None:
-    meta = seq.path / "scene.json"
-    if meta.is_file():
-        try:
-            return int(json.loads(meta.read_text()).get("seed"))
-        except (ValueError, TypeError, json.JSONDecodeError):
-            return None
-    return None
 
 
 def frame_truth(seq: Sequence, result: FrameResult) -> FrameTruth:
@@ -157,15 +128,58 @@ def frame_truth(seq: Sequence, result: FrameResult) -> FrameTruth:
     return FrameTruth(boxes, err, iou, match)
 
 
+@dataclass(frozen=True)
+class TrackItem:
+    """What the track sinks get per frame: the tracker's result and, with truth, how it scores."""
+
+    result: FrameResult
+    truth: FrameTruth | None
+
+    @property
+    def stage_seconds(self) -> Mapping[str, float]:
+        return self.result.stage_seconds
+
+
+class _CsvTrackSink:
+    def __init__(self, out: Path):
+        from pipeline.sinks.csv_sink import CsvSink
+
+        self.sink = CsvSink(out)
+
+    def write(self, frames: FramePair, item: TrackItem) -> None:
+        self.sink.write(item.result)
+
+    def checkpoint(self) -> None:
+        self.sink.checkpoint()
+
+    def close(self) -> None:
+        self.sink.close()
+
+
+class _RrdTrackSink:
+    def __init__(self, sink: object):
+        self.sink = sink
+
+    def write(self, frames: FramePair, item: TrackItem) -> None:
+        self.sink.write(frames, item.result, item.truth)  # type: ignore[attr-defined]
+
+    def checkpoint(self) -> None:
+        self.sink.checkpoint()  # type: ignore[attr-defined]
+
+    def close(self) -> None:
+        self.sink.close()  # type: ignore[attr-defined]
+
+
 def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
-    """``dualtrack track``: track a sequence folder and write its run folder."""
+    """``dualtrack track``: track a sequence folder and write its run folder (through ``pipeline.runloop``)."""
     from pipeline.eval import curves, evaluate
     from pipeline.io.results import TrackTable
-    from pipeline.sinks.csv_sink import CsvSink
-    from pipeline.sinks.summary import write_json
+    from pipeline.runloop import Job, run_job
 
+    if opts.stop_frame is not None and opts.stop_frame < 1:
+        raise InputError(f"--frames must be at least 1; got {opts.stop_frame}")
     seq = open_sequence(seq_path, channel=opts.channel, align=opts.align, gt_base=opts.gt_base)
-    cfg = load_config(opts.config_path, opts.sets)
+    cfg = opts.config if opts.config is not None else load_config(opts.config_path, opts.sets)
     engine = make_tracker(opts.tracker, cfg)
     from pipeline.trackers import NEEDS_NO_INIT, detect_init
 
@@ -177,9 +191,6 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
     else:
         targets = resolve_init(seq, opts.init, opts.init_file, opts.channel)
     out = Path(opts.out_dir) if opts.out_dir is not None else Path("runs") / seq.name
-    _prepare_out_dir(out, opts.force)
-
-    n = seq.n_frames if opts.stop_frame is None else min(opts.stop_frame, seq.n_frames)
     summary: dict[str, object] = {
         "tracker": opts.tracker,
         "sequence": seq.name,
@@ -192,110 +203,64 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
         "ids": "detected" if detected_ids else "given",
         "config": config_to_dict(cfg),
         "version": __version__,
-        "seed": _scene_seed(seq),
+        "seed": seq.meta.get("seed") if isinstance(seq.meta.get("seed"), int) else None,
         "stage_seconds": {},
         "fps_tracking": None,
         "fps_end_to_end": None,
         "complete": False,
         "metrics": None,
     }
-    write_json(out / "summary.json", summary)
-
-    boxes: dict[int, np.ndarray] = {}
-    stage: dict[str, float] = {}
-    tracker_s = decode_s = sink_s = 0.0
-    done = 0
-    interrupted = False
-    error: str | None = None
+    if seq.warnings:
+        summary["warnings"] = list(seq.warnings)
     if opts.rrd:  # importing rerun takes about 0.4 s: process start-up, not part of the run's time
         from pipeline.sinks.rerun_sink import RerunSink
-    t_start = time.perf_counter()
-    csv_sink = CsvSink(out)
-    rrd_sink = None
-    try:
+
+    boxes: dict[int, np.ndarray] = {}
+    has_truth = seq.truth.has_truth
+
+    def step(frames: FramePair) -> TrackItem:
+        result = engine.start(frames, targets) if frames.index == 1 else engine.step(frames)
+        for t in result.targets:
+            if t.id not in boxes:
+                boxes[t.id] = np.full((seq.n_frames, 4), np.nan)
+            if t.status.is_reported:
+                boxes[t.id][frames.index - 1] = t.box.as_tuple()
+        return TrackItem(result, frame_truth(seq, result) if has_truth else None)
+
+    def make_sinks() -> list:
+        sinks: list = [_CsvTrackSink(out)]
         if opts.rrd:
             start = f"{opts.tracker} on {seq.name} ({seq.layout}, {'+'.join(seq.channels)}): " + ", ".join(
                 f"T{t.id} {t.box}" for t in targets)
-            rrd_sink = RerunSink(out / "run.rrd", seq.channels, [t.id for t in targets], cfg.rerun, seq.name,
-                                 config_to_dict(cfg), seq.truth.has_truth, start)
-        with Progress(n, f"{opts.tracker} {seq.name}", enabled=opts.progress) as bar, _sigint_at_frame_end() as sigint:
-            for s in iter_track(seq, engine, targets, n):
-                if sigint["count"]:
-                    raise KeyboardInterrupt
-                tracker_s += s.tracker_seconds
-                decode_s += s.decode_seconds
-                for k, v in s.result.stage_seconds.items():
-                    stage[k] = stage.get(k, 0.0) + v
-                ts = time.perf_counter()
-                csv_sink.write(s.result)
-                if rrd_sink is not None:
-                    rrd_sink.write(s.frames, s.result, frame_truth(seq, s.result) if seq.truth.has_truth else None)
-                sink_s += time.perf_counter() - ts
-                for t in s.result.targets:
-                    if t.id not in boxes:
-                        boxes[t.id] = np.full((seq.n_frames, 4), np.nan)
-                    if t.status.is_reported:
-                        boxes[t.id][s.frames.index - 1] = t.box.as_tuple()
-                done += 1
-                bar.update(1, fps=f"{done / max(tracker_s, 1e-9):.0f}")
-    except KeyboardInterrupt:
-        interrupted = True
-    except InputError as exc:
-        error = str(exc)
-    finally:
-        ts = time.perf_counter()
-        csv_sink.close()
-        if rrd_sink is not None:
-            rrd_sink.close()
-        sink_s += time.perf_counter() - ts
-    wall = time.perf_counter() - t_start
+            try:
+                rrd = RerunSink(out / "run.rrd", seq.channels, [t.id for t in targets], cfg.rerun, seq.name,
+                                config_to_dict(cfg), has_truth, start)
+            except BaseException:
+                sinks[0].close()
+                raise
+            sinks.append(_RrdTrackSink(rrd))
+        return sinks
 
-    complete = not interrupted and error is None and done == n
-    stage.update({"decode": decode_s, "tracker": tracker_s, "sinks": sink_s})
-    summary.update({
-        "frames": done,
-        "stage_seconds": {k: round(v, 6) for k, v in stage.items()},
-        "fps_tracking": round(done / tracker_s, 3) if tracker_s > 0 else None,
-        "fps_end_to_end": round(done / wall, 3) if wall > 0 else None,
-        "complete": complete,
-    })
-    if error is not None:
-        summary["error"] = error
-    if interrupted:
-        summary["interrupted"] = True
-    if seq.truth.has_truth and done > 0:
+    def finish(stats) -> dict[str, object]:
+        if not has_truth:
+            return {}
+        done = stats.frames
         truth = _truncate(seq, done)
         table = TrackTable({k: v[:done] for k, v in boxes.items()}, {})
         id_rule = "assign" if detected_ids else "truth"  # detection-made ids are arbitrary
-        summary["metrics"] = evaluate(truth, table, done, opts.protocol, id_rule)
+        extra: dict[str, object] = {"metrics": evaluate(truth, table, done, opts.protocol, id_rule)}
         if opts.plots:
             from pipeline.sinks.plots import write_plots
 
             write_plots(out / "plots", curves(truth, table, done, id_rule), f"{seq.name} / {opts.tracker}")
-    write_json(out / "summary.json", summary)
-    return RunResult(out, summary, complete, interrupted, error, boxes)
+        return extra
 
-
-@contextmanager
-def _sigint_at_frame_end() -> Iterator[dict[str, int]]:
-    """Ctrl-C is acted on between frames, so tracks.csv, targets.csv, the .rrd and summary.json always describe
-    the same frames (a KeyboardInterrupt between two of a frame's writes left the CSV one row ahead of the
-    summary). A second Ctrl-C interrupts at once. Outside the main thread signals are left alone."""
-    state = {"count": 0}
-    if threading.current_thread() is not threading.main_thread():
-        yield state
-        return
-
-    def handler(signum: int, frame: object) -> None:
-        state["count"] += 1
-        if state["count"] > 1:
-            raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGINT, handler)
-    try:
-        yield state
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    job = Job(f"{opts.tracker} {seq.name}", seq, out, RUN_FILES, step, make_sinks, summary, finish,
+              stop_frame=opts.stop_frame, force=opts.force, progress=opts.progress,
+              checkpoint_frames=cfg.rerun.batch_frames, threads=opts.threads)
+    res = run_job(job)
+    st = res.stats
+    return RunResult(out, res.summary, res.complete, st.interrupted, st.error, boxes)
 
 
 def _truncate(seq: Sequence, n: int):

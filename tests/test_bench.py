@@ -40,7 +40,8 @@ def test_bench_repeat_reports_the_kept_runs_ratio_and_stages(scene, monkeypatch)
     def fake_run(seq, opts):
         fps, e2e, sec = next(runs)
         return types.SimpleNamespace(summary={"fps_tracking": fps, "fps_end_to_end": e2e, "complete": True,
-                                              "metrics": {"p20": 1.0, "auc": 0.8}, "stage_seconds": {"x": sec}})
+                                              "metrics": {"p20": 1.0, "auc": 0.8}, "stage_seconds": {"x": sec}},
+                                     error=None, interrupted=False)
 
     monkeypatch.setattr(B, "run_track", fake_run)
     monkeypatch.setattr(B, "decode_rate", lambda *a, **k: (600.0, 32))

@@ -140,7 +140,11 @@ def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = 
 
         raise InputError(f"{seq.path} has no ground truth to evaluate against")
     tracks = read_tracks(tracks_csv, seq.n_frames)
-    return evaluate(seq.truth, tracks, seq.n_frames, protocol, id_rule, mot_rule)
+    out = evaluate(seq.truth, tracks, seq.n_frames, protocol, id_rule, mot_rule)
+    warnings = [*seq.warnings, *tracks.warnings]
+    if warnings:
+        out["warnings"] = warnings
+    return out
 
 
 def curves(truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto") -> dict[int, dict[str, np.ndarray]]:

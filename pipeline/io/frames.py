@@ -76,8 +76,13 @@ class ImageListSource:
             data = path.read_bytes()
         except OSError as exc:
             raise InputError(f"cannot read frame {index0 + 1}: {path}: {exc.strerror}") from None
+        if not data:
+            raise InputError(f"unreadable frame {index0 + 1}: {path} is empty (0 bytes)")
         flag = cv2.IMREAD_GRAYSCALE if self.grey and path.suffix.lower() in (".jpg", ".jpeg") else cv2.IMREAD_UNCHANGED
-        image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
+        try:
+            image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
+        except cv2.error:
+            image = None
         if image is None or image.size == 0:
             raise InputError(f"unreadable frame {index0 + 1}: {path} is not a decodable image")
         if image.ndim == 3 and image.shape[2] == 4:

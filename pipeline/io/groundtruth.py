@@ -125,7 +125,7 @@ class MotTruth:
 
     boxes: dict[int, np.ndarray]
     visibility: dict[int, np.ndarray] = field(default_factory=dict)
-
+    last_frame: int = 0  # the largest frame number in the file
 
 def parse_mot_rows(path: Path, base: float = 1.0) -> list[tuple[int, int, tuple[float, float, float, float], float, float]]:
     """Rows ``(frame, id, box, flag, visibility)`` of a MOTChallenge-style file.
@@ -156,7 +156,9 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
     """Parse a MOTChallenge ``gt.txt`` (rows with flag 0 are ignored, as MOTChallenge does)."""
     boxes: dict[int, np.ndarray] = {}
     vis: dict[int, np.ndarray] = {}
+    last = 0
     for frame, tid, box, flag, v in parse_mot_rows(path, base):
+        last = max(last, frame)
         if flag == 0 or frame > n_frames:
             continue
         if tid not in boxes:
@@ -166,7 +168,7 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
         vis[tid][frame - 1] = min(max(v, 0.0), 1.0) if not math.isnan(box[0]) else 0.0
     if not boxes:
         raise InputError(f"{path}: no ground-truth rows")
-    return MotTruth(dict(sorted(boxes.items())), dict(sorted(vis.items())))
+    return MotTruth(dict(sorted(boxes.items())), dict(sorted(vis.items())), last)
 
 
 def expand_sparse(boxes: np.ndarray, n_frames: int, every: int) -> np.ndarray:

@@ -70,8 +70,12 @@ def validate_init(targets: list[InitTarget], width: int, height: int) -> list[In
         if not (b.w > 0 and b.h > 0) or not b.is_valid():
             raise InputError(f"init box of target {t.id} {b} must have positive width and height")
         c = b.clip(width, height)
-        if c.w < 2 or c.h < 2:
+        if c.area <= 0:
             raise InputError(f"init box of target {t.id} {b} lies outside the {width}x{height} frame")
+        if c.w < 2 or c.h < 2:
+            part = "its part inside the frame is" if c != b else "it is"
+            raise InputError(f"init box of target {t.id} {b} is too small to track: {part} {c.w:g}x{c.h:g} px, "
+                             "at least 2x2 is needed")
         out.append(InitTarget(t.id, c))
     return out
 

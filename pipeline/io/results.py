@@ -24,14 +24,21 @@ class TrackTable:
 
     boxes: dict[int, np.ndarray]
     confidence: dict[int, np.ndarray]
+    warnings: tuple[str, ...] = ()
 
 
 def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
     """Read ``tracks.csv`` (MOT rows) or a per-frame box file for a sequence of ``n_frames``."""
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"results file not found: {p}")
-    first = next((ln for ln in p.read_text().splitlines() if ln.strip()), None)
+        raise InputError(f"results file not found: {p}" if not p.exists() else f"results file {p} is a folder")
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(f"{p}: not a text results file (MOT rows or one x,y,w,h per line)") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror}") from None
+    first = next((ln for ln in text.splitlines() if ln.strip()), None)
     if first is None:
         return TrackTable({}, {})
     n_cols = len([c for c in first.replace(",", " ").split() if c])
@@ -41,15 +48,26 @@ def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
             raise InputError(f"{p}: {arr.shape[0]} result lines for a sequence of {n_frames} frames")
         boxes = np.full((n_frames, 4), np.nan)
         boxes[: arr.shape[0]] = arr
-        return TrackTable({1: boxes}, {1: np.where(np.isnan(boxes[:, 0]), np.nan, 1.0)})
+        short = (f"{p} has {arr.shape[0]} lines for {n_frames} frames; the frames past them have no output",) \
+            if arr.shape[0] < n_frames else ()
+        return TrackTable({1: boxes}, {1: np.where(np.isnan(boxes[:, 0]), np.nan, 1.0)}, short)
     boxes_d: dict[int, np.ndarray] = {}
     conf_d: dict[int, np.ndarray] = {}
+    seen: set[tuple[int, int]] = set()
+    dup: list[tuple[int, int]] = []
     for frame, tid, box, conf, _vis in parse_mot_rows(p, base=MOT_BASE):
         if frame > n_frames:
             raise InputError(f"{p}: row for frame {frame} but the sequence has {n_frames} frames")
+        if (frame, tid) in seen:
+            dup.append((frame, tid))
+        seen.add((frame, tid))
         if tid not in boxes_d:
             boxes_d[tid] = np.full((n_frames, 4), np.nan)
             conf_d[tid] = np.full(n_frames, np.nan)
         boxes_d[tid][frame - 1] = box
         conf_d[tid][frame - 1] = conf
-    return TrackTable(dict(sorted(boxes_d.items())), dict(sorted(conf_d.items())))
+    warnings = ()
+    if dup:
+        f, t = dup[0]
+        warnings = (f"{p}: {len(dup)} duplicate (frame, id) rows, the first frame {f} id {t}; the last row of each counts",)
+    return TrackTable(dict(sorted(boxes_d.items())), dict(sorted(conf_d.items())), warnings)

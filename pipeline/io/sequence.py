@@ -189,8 +189,14 @@ class Sequence:
         size: tuple[int, int],
         ir_resize: tuple[int, int] | None,
         init_file: Path | None,
+        meta: dict[str, object] | None = None,
+        warnings: tuple[str, ...] = (),
     ):
         self.path = path
+        self.meta = meta or {}
+        """The sequence's ``scene.json`` (synthetic scenes: seed, visibility, attributes), read once; {} without one."""
+        self.warnings = warnings
+        """Things about the input worth saying that do not stop a run (truth rows that do not match the frames)."""
         self.name = path.name
         self.layout = layout
         self.sources = sources
@@ -454,12 +460,32 @@ def open_sequence(
     if "infrared" in sources and first["infrared"].image.dtype != np.uint8:
         ir_norm = _percentile_norm(sources["infrared"])
 
-    truth = _load_truth(root, spec, frames_dir, n, gt_base, sources)
+    if gt_base is not None and gt_base not in (0, 1):
+        raise InputError(f"--gt-base must be 0 or 1 (the coordinate of the first pixel's corner); got {gt_base:g}")
+    warnings: list[str] = []
+    truth = _load_truth(root, spec, frames_dir, n, gt_base, sources, warnings)
     if ir_resize is not None and "infrared" in truth.boxes and not truth.multi:
         sx, sy = size[0] / ir_resize[0], size[1] / ir_resize[1]
         truth.boxes["infrared"] = {k: v * np.array([sx, sy, sx, sy]) for k, v in truth.boxes["infrared"].items()}
     init_file = root / "init.txt" if (root / "init.txt").is_file() else None
-    return Sequence(root, spec.name, sources, truth, ir_norm, size, ir_resize, init_file)
+    return Sequence(root, spec.name, sources, truth, ir_norm, size, ir_resize, init_file, read_scene_json(root, warnings),
+                    tuple(warnings))
+
+
+def read_scene_json(folder: Path, warnings: list[str] | None = None) -> dict[str, object]:
+    """A sequence folder's ``scene.json`` as a dict ({} when there is none or it cannot be read)."""
+    import json
+
+    f = Path(folder) / "scene.json"
+    if not f.is_file():
+        return {}
+    try:
+        data = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        if warnings is not None:
+            warnings.append(f"{f}: not readable as JSON ({type(exc).__name__}); its attributes are ignored")
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def _percentile_norm(src: FrameSource, samples: int = 16) -> IrNormalization:
@@ -483,10 +509,13 @@ def _load_truth(
     n: int,
     gt_base: float | None,
     sources: dict[str, FrameSource],
+    warnings: list[str],
 ) -> Truth:
     mot = _find_mot_gt(root, frames_dir)
     if mot is not None:
         mt: MotTruth = parse_mot_truth(mot, n, base=1.0 if gt_base is None else gt_base)
+        if mt.last_frame > n:
+            warnings.append(f"{mot} has rows up to frame {mt.last_frame} for a sequence of {n} frames (ignored)")
         boxes = {c: mt.boxes for c in sources}
         return Truth(boxes, mt.visibility, {c: str(mot) for c in sources}, multi=True)
     base = spec.base if gt_base is None else gt_base
@@ -506,6 +535,11 @@ def _load_truth(
         if not f.is_file():
             continue
         arr = parse_box_file(f, form, base)
+        want = -(-n // spec.sparse_every)
+        if arr.shape[0] != want:
+            every = f" (one every {spec.sparse_every} frames)" if spec.sparse_every > 1 else ""
+            fate = "the extra rows are ignored" if arr.shape[0] > want else "the frames past them have no truth"
+            warnings.append(f"{f} has {arr.shape[0]} rows for {n} frames{every}, {want} expected; {fate}")
         arr = expand_sparse(arr, n, spec.sparse_every) if spec.sparse_every > 1 else fit_length(arr, n)
         targets = ("visible", "infrared") if ch == "both" else (ch,)
         for c in targets:

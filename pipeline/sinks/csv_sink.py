@@ -1,7 +1,7 @@
 """``tracks.csv`` (MOTChallenge rows) and ``targets.csv`` (per-target status table).
 
-Rows are written and flushed frame by frame, so a run interrupted at any frame leaves
-both files valid for the frames done.
+Rows are written whole at each checkpoint of the run loop (``pipeline.runloop``), so after any
+fault both files end with a complete row and hold the frames ``summary.json`` reports.
 
 ``tracks.csv``: no header; ``frame,id,x,y,w,h,conf,-1,-1,-1`` per target per frame while
 the target is tracked or occluded (``conf`` lower when occluded); no row once it is lost
@@ -23,6 +23,7 @@ from pathlib import Path
 from types import TracebackType
 
 from pipeline.io.groundtruth import MOT_BASE
+from pipeline.sinks.rowfile import RowFile
 from pipeline.types import FrameResult
 
 TARGETS_HEADER = (
@@ -46,15 +47,16 @@ def _pairs(d: dict[str, float] | object) -> str:
 
 
 class CsvSink:
-    """Writes ``tracks.csv`` and ``targets.csv`` into a run folder."""
+    """Writes ``tracks.csv`` and ``targets.csv`` into a run folder, in whole rows at each checkpoint
+    (``pipeline.sinks.rowfile``)."""
 
     def __init__(self, out_dir: Path):
-        self._tracks = open(out_dir / "tracks.csv", "w", newline="")  # noqa: SIM115 - closed in close()
-        self._targets = open(out_dir / "targets.csv", "w", newline="")  # noqa: SIM115
+        self._tracks = RowFile(out_dir / "tracks.csv")
+        self._targets = RowFile(out_dir / "targets.csv")
         self._tw = csv.writer(self._tracks, lineterminator="\n")
         self._gw = csv.writer(self._targets, lineterminator="\n")
         self._gw.writerow(TARGETS_HEADER)
-        self._targets.flush()
+        self._targets.checkpoint()
 
     def write(self, result: FrameResult) -> None:
         f = result.frame
@@ -68,13 +70,17 @@ class CsvSink:
                 _pairs(t.iterations), _num(t.rho) if not math.isnan(t.rho) else "", t.model_update,
                 _pairs(t.diagnostics),
             ])
-        self._tracks.flush()
-        self._targets.flush()
+
+    def checkpoint(self) -> None:
+        """Write every row so far to disk (both files hold the same frames afterwards)."""
+        self._tracks.checkpoint()
+        self._targets.checkpoint()
 
     def close(self) -> None:
-        for fh in (self._tracks, self._targets):
-            if not fh.closed:
-                fh.close()
+        try:
+            self._tracks.close()
+        finally:
+            self._targets.close()
 
     def __enter__(self) -> CsvSink:
         return self

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.io.groundtruth import MOT_BASE
+from pipeline.sinks.rowfile import RowFile
 from pipeline.stages.detection import Detections, Region
 
 ROI_HEADER = ("frame", "x_px", "y_px", "w_px", "h_px", "cx_px", "cy_px", "perimeter_px", "area_px", "aspect",
@@ -31,24 +32,30 @@ class DetectionFiles:
     """``det.txt`` and ``rois.csv``."""
 
     def __init__(self, out: Path):
-        self._det = open(out / "det.txt", "w", newline="")  # noqa: SIM115
-        self._rois = open(out / "rois.csv", "w", newline="")  # noqa: SIM115
-        self._w = csv.writer(self._rois)
+        self._det = RowFile(out / "det.txt")
+        self._rois = RowFile(out / "rois.csv")
+        self._w = csv.writer(self._rois, lineterminator="\r\n")
         self._w.writerow(ROI_HEADER)
+        self._rois.checkpoint()
 
     def write(self, frame: int, d: Detections) -> None:
         for r in d.regions:
             b = r.box
             conf = min(1.0, 1.0 / max(r.c2, 1.0))
-            self._det.write(f"{frame},-1,{b.x + MOT_BASE:.2f},{b.y + MOT_BASE:.2f},{b.w:.2f},{b.h:.2f},{conf:.3f},-1,-1,-1\n")
+            self._det.add(f"{frame},-1,{b.x + MOT_BASE:.2f},{b.y + MOT_BASE:.2f},{b.w:.2f},{b.h:.2f},{conf:.3f},-1,-1,-1")
         for r in (*d.regions, *d.rejected):
             self._w.writerow(_row(frame, r))
-        self._det.flush()
-        self._rois.flush()
+
+    def checkpoint(self) -> None:
+        """Write every row so far in whole rows (``pipeline.sinks.rowfile``)."""
+        self._det.checkpoint()
+        self._rois.checkpoint()
 
     def close(self) -> None:
-        self._det.close()
-        self._rois.close()
+        try:
+            self._det.close()
+        finally:
+            self._rois.close()
 
 
 def _row(frame: int, r: Region) -> list[object]:
@@ -102,6 +109,11 @@ class DetectionRecording:
         self.rec.log(f"{c}/roi_contours", rr.LineStrips2D(strips, colors=[(60, 220, 60)]) if strips else rr.Clear(recursive=False))
         self.rec.log("metrics/detections", rr.Scalars(float(len(d.regions))))
 
+    def checkpoint(self) -> None:
+        """Wait until what was logged reaches the file."""
+        self.rec.flush(timeout_sec=10.0)
+
     def close(self) -> None:
-        self.rec.flush()
+        self.rec.flush(timeout_sec=10.0)
+        self.rec.disconnect()
         self.rec.disconnect()

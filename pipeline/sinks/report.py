@@ -19,6 +19,7 @@ tracking papers print, and ``plots/attributes/<A>_*.png`` the same per attribute
 from __future__ import annotations
 
 import json
+import os
 import math
 from pathlib import Path
 
@@ -42,6 +43,37 @@ def _f(v: object, nd: int = 3) -> str:
     if isinstance(v, float):
         return "" if math.isnan(v) else f"{v:.{nd}f}"
     return str(v)
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_progress_report(out: Path, results: list, opts, total: int, wall_seconds: float) -> None:
+    """A running batch's report: every finished sequence's status, scores and error, rewritten after each one
+    (atomically), so a batch that is killed leaves a report of what finished. The final report replaces it."""
+    out = Path(out)
+    sequences = {}
+    for r in results:
+        t = r.task
+        sequences[t.key] = {"status": r.status, "error": r.error, "tracker": t.tracker, "sequence": t.sequence,
+                            "run_dir": _rel(t.run_dir, out), "metrics": r.summary.get("metrics"),
+                            "fps_tracking": r.summary.get("fps_tracking"), "frames": r.summary.get("frames")}
+    report = json_safe({"protocol": opts.protocol, "trackers": list(opts.trackers), "partial": True,
+                        "finished": len(results), "tasks": total, "wall_seconds": round(wall_seconds, 3),
+                        "sequences": sequences})
+    _write_atomic(out / "report.json", json.dumps(report, indent=1) + "\n")
+    keys = list(HEADLINE[opts.protocol])[:2]
+    lines = ["# dualtrack batch report (in progress)", "",
+             f"{len(results)} of {total} runs finished after {wall_seconds:.1f} s; the full report is written when the "
+             "batch ends.", "", "| run | status | " + " / ".join(LABEL[k] for k in keys) + " | error |", "|---|---|---|---|"]
+    for k, rec in sequences.items():
+        m = rec.get("metrics") or {}
+        lines.append(f"| {k} | {rec['status']} | " + " / ".join(_f(m.get(x)) for x in keys)  # type: ignore[union-attr]
+                     + f" | {rec.get('error') or ''} |")
+    _write_atomic(out / "report.md", "\n".join(lines) + "\n")
 
 
 def write_report(out: Path, results: list, opts, wall_seconds: float, interrupted: bool) -> dict[str, object]:
@@ -89,7 +121,7 @@ def write_report(out: Path, results: list, opts, wall_seconds: float, interrupte
 
     report = json_safe({"protocol": protocol, "trackers": trackers, "wall_seconds": round(wall_seconds, 3),
                      "interrupted": interrupted, "sequences": sequences, "overall": overall})
-    (out / "report.json").write_text(json.dumps(report, indent=1) + "\n")
+    _write_atomic(out / "report.json", json.dumps(report, indent=1) + "\n")
 
     plots: list[Path] = []
     series = {t: {"precision": np.asarray(o["precision_curve"]), "success": np.asarray(o["success_curve"])}
@@ -105,7 +137,7 @@ def write_report(out: Path, results: list, opts, wall_seconds: float, interrupte
             if s:
                 n = max(int(o["attributes"][a]["sequences"]) for o in overall.values() if a in o["attributes"])  # type: ignore[index, operator]
                 plots += comparison_plots(out / "plots" / "attributes", s, f"{a} ({n} sequences)", prefix=f"{a}_")
-    (out / "report.md").write_text(_markdown(report, protocol, trackers, plots, out))
+    _write_atomic(out / "report.md", _markdown(report, protocol, trackers, plots, out))
     return report  # type: ignore[return-value]
 
 

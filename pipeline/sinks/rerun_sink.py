@@ -14,9 +14,10 @@ target's status, so a frame where the output misses the truth or is missing show
 timeline), with a ``failure`` event where a failure starts.
 
 To keep logging well under 1 ms per frame pair, frames are buffered and written with
-``send_columns`` every ``batch_frames`` frames; :meth:`RerunSink.close` writes what is
-left and closes the file with its footer, so an interrupted run leaves a readable
-recording of every frame it processed.
+``send_columns`` at each checkpoint of the run loop (every ``batch_frames`` frames), which
+also waits for them to reach the file; :meth:`RerunSink.close` writes what is left and
+closes the file with its footer, so an interrupted run leaves a recording that verifies,
+and a killed one a recording (without footer) of every frame up to its last checkpoint.
 """
 
 from __future__ import annotations
@@ -221,7 +222,7 @@ class RerunSink:
                     self._buf[f"targets/{tid}/truth"].append((f, m.value))
         for stage, sec in result.stage_seconds.items():
             self._buf[f"timing/{stage}_ms"].append((f, sec * 1e3))
-        if len(self._frames) >= self.cfg.batch_frames:
+        if len(self._frames) >= 4 * self.cfg.batch_frames:  # written at checkpoints; a bound when used alone
             self.flush()
 
     def flush(self) -> None:
@@ -291,6 +292,11 @@ class RerunSink:
             else:
                 rec.send_columns(key, indexes=idx, columns=rr.Scalars.columns(
                     scalars=np.asarray([r[1] for r in rows], np.float64)))
+
+    def checkpoint(self) -> None:
+        """Write the buffered frames and wait until they reach the file (a killed run keeps them)."""
+        self.flush()
+        self.rec.flush(timeout_sec=10.0)
 
     def close(self) -> None:
         """Flush what is buffered and close the file (writes the footer)."""

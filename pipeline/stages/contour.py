@@ -163,7 +163,7 @@ def warm_phi(memory: LevelSetMemory, shift: tuple[float, float], origin: tuple[i
     return np.clip(phi, -c0, c0).astype(np.float32)
 
 
-@numba.njit(cache=True, boundscheck=False)  # no fastmath: the same float32 arithmetic as numpy
+@numba.njit(cache=True, boundscheck=False, nogil=True)  # no fastmath: the same float32 arithmetic as numpy
 def _reach(phi, mask, fixed, lo, hi, step, along_rows):  # pragma: no cover (compiled)
     """Farthest fraction of a pixel beyond the inside pixel centres of line ``fixed`` (a column when
     ``along_rows``, else a row) where phi crosses 0 towards ``fixed + step``; 0.5 past the array edge."""
@@ -198,7 +198,7 @@ def _ring_contrast(roi: np.ndarray, sel_u8: np.ndarray) -> float:
     return _ring_contrast_kernel(np.ascontiguousarray(roi), sel_u8)
 
 
-@numba.njit(cache=True, boundscheck=False)  # no fastmath
+@numba.njit(cache=True, boundscheck=False, nogil=True)  # no fastmath
 def _ring_contrast_kernel(roi, sel):  # pragma: no cover (compiled)
     H, W = sel.shape
     # the 7x7 dilation by running counts: along rows, then the rows' results down the columns

@@ -172,7 +172,7 @@ def _central_diff_fast(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _diff_pair(np.ascontiguousarray(a, dtype=np.float32))
 
 
-@numba.njit(cache=True, boundscheck=False)  # no fastmath: the same float32 arithmetic as OpenCV's
+@numba.njit(cache=True, boundscheck=False, nogil=True)  # no fastmath: the same float32 arithmetic as OpenCV's
 def _diff_pair(a):  # pragma: no cover (compiled)
     """Flat unsigned indices (no wrap-around checks), the interior of each row in one loop."""
     H, W = a.shape
@@ -309,7 +309,7 @@ def _luts(eps: float) -> tuple[np.ndarray, np.ndarray]:
     return dps, de
 
 
-@numba.njit(cache=True, boundscheck=False)
+@numba.njit(cache=True, boundscheck=False, nogil=True)
 def _mirror_border(phi):  # pragma: no cover (compiled)
     """Neumann border in place, as :func:`_neumann`: the outer rows/columns copy the second ones in."""
     H, W = phi.shape
@@ -321,7 +321,7 @@ def _mirror_border(phi):  # pragma: no cover (compiled)
         phi[i, W - 1] = phi[i, W - 3]
 
 
-@numba.njit(cache=True, boundscheck=False)
+@numba.njit(cache=True, boundscheck=False, nogil=True)
 def _any_negative(a):  # pragma: no cover (compiled)
     for k in range(a.size):
         if a[k] < 0:
@@ -329,7 +329,7 @@ def _any_negative(a):  # pragma: no cover (compiled)
     return False
 
 
-@numba.njit(cache=True, boundscheck=False, fastmath=True, inline="always")
+@numba.njit(cache=True, boundscheck=False, fastmath=True, inline="always", nogil=True)
 def _near_at(pf, k, i, j, H, uW, band):  # pragma: no cover (compiled)
     """The band test of one pixel with its neighbours inside the array only."""
     u1 = np.uint64(1)
@@ -347,7 +347,7 @@ def _near_at(pf, k, i, j, H, uW, band):  # pragma: no cover (compiled)
 
 
 # error_model numpy: no zero test before each division (none divides by zero: 1 / (s + tiny), 1 / s for s >= 1)
-@numba.njit(cache=True, boundscheck=False, fastmath=True, error_model="numpy")
+@numba.njit(cache=True, boundscheck=False, fastmath=True, error_model="numpy", nogil=True)
 def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_lut, de_lut,
                      check_every, stop_back, stop_tol, areas, n_refine):  # pragma: no cover
     """``n_iter`` DRLSE iterations in place on ``phi`` (float32), updating only a narrow band.
