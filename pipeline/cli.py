@@ -151,6 +151,8 @@ def _cmd_track(a: argparse.Namespace) -> int:
         parts = [f"{k} {m[k]:.3f}" for k in ("p20", "auc", "mpr", "msr", "pr", "sr", "mota", "idf1") if isinstance(m.get(k), float)]
         line += ", " + ", ".join(parts)
     print(line)
+    if res.crash is not None and os.environ.get("DUALTRACK_DEBUG"):
+        raise res.crash
     return _ending(res.error, res.interrupted, int(s["frames"]), res.out_dir)
 
 
@@ -390,6 +392,8 @@ def _die_with_parent() -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     _die_with_parent()
+    # the Rerun SDK logs its own errors to stderr (a full disk twice over); ours name the file in one line
+    os.environ.setdefault("RUST_LOG", "off")
     if argv and argv[0] == "bench":  # one core, before numpy/OpenCV start their thread pools
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
             os.environ[var] = "1"

@@ -74,6 +74,9 @@ class _FilesSink:
     def checkpoint(self) -> None:
         self.files.checkpoint()
 
+    def rollback(self) -> None:
+        self.files.rollback()
+
     def close(self) -> None:
         self.files.close()
 

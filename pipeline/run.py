@@ -103,6 +103,7 @@ class RunResult:
     interrupted: bool = False
     error: str | None = None
     boxes: dict[int, np.ndarray] = field(default_factory=dict)
+    crash: BaseException | None = None  # the exception behind an internal error (DUALTRACK_DEBUG re-raises it)
 
 
 def frame_truth(seq: Sequence, result: FrameResult) -> FrameTruth:
@@ -151,6 +152,9 @@ class _CsvTrackSink:
 
     def checkpoint(self) -> None:
         self.sink.checkpoint()
+
+    def rollback(self) -> None:
+        self.sink.rollback()
 
     def close(self) -> None:
         self.sink.close()
@@ -260,7 +264,7 @@ def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
               checkpoint_frames=cfg.rerun.batch_frames, threads=opts.threads)
     res = run_job(job)
     st = res.stats
-    return RunResult(out, res.summary, res.complete, st.interrupted, st.error, boxes)
+    return RunResult(out, res.summary, res.complete, st.interrupted, st.error, boxes, st.crash)
 
 
 def _truncate(seq: Sequence, n: int):

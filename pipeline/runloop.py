@@ -63,6 +63,7 @@ class LoopStats:
     stage_s: dict[str, float] = field(default_factory=dict)
     interrupted: bool = False
     error: str | None = None
+    crash: BaseException | None = None  # the unexpected exception behind an internal error, for debugging
 
 
 @dataclass
@@ -214,10 +215,19 @@ class _Writer:
         self.sinks_s += time.perf_counter() - t0
 
     def _checkpoint(self) -> None:
-        for s in self.sinks:
-            s.checkpoint()
+        """Every sink durable, then summary.json; if any part fails the row files go back to the last checkpoint,
+        so that they hold what summary.json says."""
+        try:
+            for s in self.sinks:
+                s.checkpoint()
+            self.on_checkpoint(self._n)
+        except BaseException:
+            for s in self.sinks:
+                undo = getattr(s, "rollback", None)
+                if undo is not None:
+                    undo()
+            raise
         self.written = self._n
-        self.on_checkpoint(self.written)
 
     def _run(self) -> None:
         while True:
@@ -342,6 +352,9 @@ def run_job(job: Job) -> LoopResult:
                 stats.error = str(exc)
             except OSError as exc:
                 stats.error = describe_os_error(exc)
+            except Exception as exc:  # a bug in a step or a sink: the outputs still close and stay valid
+                stats.error = f"internal error after {done} frames: {type(exc).__name__}: {' '.join(str(exc).split())}"
+                stats.crash = exc
             finally:
                 reader.close()
                 writer.close()
@@ -368,14 +381,17 @@ def run_job(job: Job) -> LoopResult:
             final["error"] = stats.error
         if stats.interrupted:
             final["interrupted"] = True
-        if job.finish is not None and stats.frames > 0:
+        if job.finish is not None and stats.frames > 0 and writer.error is None:
             try:
                 final.update(job.finish(stats))
             except InputError as exc:
                 stats.error = stats.error or str(exc)
                 final["error"] = stats.error
                 final["complete"] = False
-        write_summary(final)
+        try:
+            write_summary(final)
+        except OutputError as exc:  # the disk is full: the last checkpoint's summary stays, true to the files
+            stats.error = stats.error or str(exc)
         if sig.count and stats.error is None:
             stats.interrupted = True
     return LoopResult(job.out_dir, summary, stats)

@@ -11,7 +11,12 @@ from rerun.chunk import RrdReader
 
 
 def open_store(path: str | Path):
-    reader = RrdReader(str(path))
+    """The recording's store; a recording without footer (a killed run) is read as a stream, as the viewer does."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="RRD file has no footer")
+        reader = RrdReader(str(path))
     rec = reader.recordings()[0]  # the blueprint store is separate
     try:
         return reader.store(store=rec)

@@ -76,6 +76,11 @@ class CsvSink:
         self._tracks.checkpoint()
         self._targets.checkpoint()
 
+    def rollback(self) -> None:
+        """Undo the last checkpoint of both files."""
+        self._tracks.rollback()
+        self._targets.rollback()
+
     def close(self) -> None:
         try:
             self._tracks.close()

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.errors import OutputError
 from pipeline.io.groundtruth import MOT_BASE
 from pipeline.sinks.rowfile import RowFile
 from pipeline.stages.detection import Detections, Region
@@ -51,6 +52,11 @@ class DetectionFiles:
         self._det.checkpoint()
         self._rois.checkpoint()
 
+    def rollback(self) -> None:
+        """Undo the last checkpoint of both files."""
+        self._det.rollback()
+        self._rois.rollback()
+
     def close(self) -> None:
         try:
             self._det.close()
@@ -74,6 +80,7 @@ class DetectionRecording:
         self.rr = rr
         self.channel = channel
         self.scale = 127.0 / max(min_std, 1e-6)
+        self.path = path
         self.rec = rr.RecordingStream("dualtrack", recording_id=f"detect-{name}")
         bp = rrb.Blueprint(rrb.Vertical(
             rrb.Horizontal(rrb.Spatial2DView(origin=f"/{channel}", name="ROIs",
@@ -111,9 +118,16 @@ class DetectionRecording:
 
     def checkpoint(self) -> None:
         """Wait until what was logged reaches the file."""
-        self.rec.flush(timeout_sec=10.0)
+        try:
+            self.rec.flush(timeout_sec=10.0)
+        except RuntimeError as exc:
+            raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
 
     def close(self) -> None:
-        self.rec.flush(timeout_sec=10.0)
-        self.rec.disconnect()
+        try:
+            self.rec.flush(timeout_sec=10.0)
+        except RuntimeError as exc:
+            raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
+        finally:
+            self.rec.disconnect()
         self.rec.disconnect()

@@ -33,6 +33,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from pipeline.errors import OutputError
 from pipeline.io.sequence import FramePair
 from pipeline.sinks.settings import RerunConfig
 from pipeline.types import FrameResult, FrameTruth, TargetStatus, TruthMatch
@@ -109,6 +110,7 @@ class RerunSink:
     ):
         self.cfg = cfg
         self.channels = channels
+        self.path = path
         self.rec = rr.RecordingStream(APP_ID, recording_id=f"{recording_name}-{uuid.uuid4().hex[:12]}")
         self._blueprint_ids = tuple(sorted(target_ids))
         self.rec.save(str(path), default_blueprint=blueprint(channels, self._blueprint_ids, has_truth))
@@ -295,21 +297,29 @@ class RerunSink:
 
     def checkpoint(self) -> None:
         """Write the buffered frames and wait until they reach the file (a killed run keeps them)."""
-        self.flush()
-        self.rec.flush(timeout_sec=10.0)
+        try:
+            self.flush()
+            self.rec.flush(timeout_sec=10.0)
+        except RuntimeError as exc:  # the SDK's file writer stopped (a full disk, a removed folder)
+            raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
 
     def close(self) -> None:
         """Flush what is buffered and close the file (writes the footer)."""
         if self._closed:
             return
         try:
-            self.flush()
-            if self._has_truth and tuple(sorted(self._known_ids)) != self._blueprint_ids:  # ids born in the run
-                self.rec.send_blueprint(blueprint(self.channels, sorted(self._known_ids), True))
-        finally:
-            self._closed = True
-            self.rec.flush(timeout_sec=10.0)
-            self.rec.disconnect()
+            try:
+                self.flush()
+                if self._has_truth and tuple(sorted(self._known_ids)) != self._blueprint_ids:  # ids born in the run
+                    self.rec.send_blueprint(blueprint(self.channels, sorted(self._known_ids), True))
+            finally:
+                self._closed = True
+                try:
+                    self.rec.flush(timeout_sec=10.0)
+                finally:
+                    self.rec.disconnect()
+        except RuntimeError as exc:
+            raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
 
     def __enter__(self) -> RerunSink:
         return self

@@ -26,6 +26,7 @@ class RowFile:
         except OSError as exc:
             raise OutputError(f"cannot write {describe_os_error(exc, str(self.path))}") from None
         self._pos = 0
+        self._checkpoint_pos = 0  # where the file ended before the last checkpoint
         self._rows: list[str] = []
         if header is not None:
             self.add(header)
@@ -45,6 +46,7 @@ class RowFile:
             return
         data = "".join(self._rows).encode("utf-8")
         self._rows = []
+        self._checkpoint_pos = self._pos
         view = memoryview(data)
         done = 0
         try:
@@ -58,6 +60,17 @@ class RowFile:
                 pass
             raise OutputError(f"cannot write {describe_os_error(exc, str(self.path))}") from None
         self._pos += len(data)
+
+    def rollback(self) -> None:
+        """Undo the last checkpoint (the run loop's checkpoint failed after this file's part of it succeeded)."""
+        if self._fd is None:
+            return
+        try:
+            os.ftruncate(self._fd, self._checkpoint_pos)
+            os.lseek(self._fd, self._checkpoint_pos, os.SEEK_SET)
+            self._pos = self._checkpoint_pos
+        except OSError:
+            pass
 
     def close(self) -> None:
         """Write what is queued and close the file (a failure to write still closes it, then raises)."""

@@ -1,0 +1,322 @@
+"""Faults a user meets, run as a user would (the CLI in a subprocess): every one leaves valid outputs.
+
+After each, ``summary.json`` says how many frames ``tracks.csv`` and ``targets.csv`` hold, the CSVs end with a
+whole row, and the recording verifies (a SIGKILLed run's recording lacks its footer but a stream reader reads
+every frame the CSVs hold).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import write_boxes, write_frames
+
+PY = sys.executable
+
+
+def _cli(*args: object, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run([PY, "-m", "pipeline", *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+def _start(*args: object) -> subprocess.Popen:
+    return subprocess.Popen([PY, "-m", "pipeline", *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def _one_error_line(err: str, *needles: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("dualtrack: warning:")]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("dualtrack: error: "), lines[0]
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+    return lines[0]
+
+
+def _summary(run: Path) -> dict:
+    return json.loads((run / "summary.json").read_text())
+
+
+def _csv_frames(run: Path) -> int:
+    """Frames in targets.csv (every row whole: each parses to the header's columns)."""
+    text = (run / "targets.csv").read_text()
+    assert text.endswith("\n")
+    rows = list(csv.reader(text.splitlines()))
+    assert all(len(r) == len(rows[0]) for r in rows)
+    tracks = (run / "tracks.csv").read_text()
+    assert tracks == "" or tracks.endswith("\n")
+    frames = {int(r[0]) for r in rows[1:]}
+    assert frames == set(range(1, len(frames) + 1))
+    return len(frames)
+
+
+def _verify(rrd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([str(Path(PY).parent / "rerun"), "rrd", "verify", str(rrd)], capture_output=True, text=True,
+                          timeout=120)
+
+
+def _rrd_frames(rrd: Path) -> set[int]:
+    from tests.rrd_helpers import open_store, rows
+
+    t = rows(open_store(rrd), "/visible/targets", ["Boxes2D:centers"])
+    return set(t.column("frame").to_pylist())
+
+
+def _tiny(root: Path, n: int = 12) -> Path:
+    write_frames(root / "visible", n)
+    write_frames(root / "infrared", n, color=False)
+    write_boxes(root / "visible.txt", n)
+    write_boxes(root / "infrared.txt", n)
+    return root
+
+
+@pytest.fixture(scope="module")
+def long_scene(tmp_path_factory) -> Path:
+    """A 400-frame random scene: long enough under MIL (a few tens of frames per second) to be stopped mid-run."""
+    from pipeline.synthetic import synthesize_random
+
+    return synthesize_random(tmp_path_factory.mktemp("long") / "seq", 3, targets=1, frames=400, progress=False)
+
+
+def _wait_frames(run: Path, frames: int, proc: subprocess.Popen, timeout: float = 120) -> None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        assert proc.poll() is None, proc.communicate()
+        try:
+            if _summary(run)["frames"] >= frames:
+                return
+        except (OSError, ValueError, KeyError):
+            pass
+        time.sleep(0.05)
+    raise AssertionError("the run did not get going")
+
+
+def test_zero_byte_frame_names_frame_and_file_and_keeps_the_frames_before(tmp_path):
+    seq = _tiny(tmp_path / "s")
+    bad = seq / "infrared" / "00009.jpg"
+    bad.write_bytes(b"")
+    r = _cli("track", seq, "--out", tmp_path / "run")
+    assert r.returncode == 1
+    _one_error_line(r.stderr, "frame 9", str(bad), "empty")
+    s = _summary(tmp_path / "run")
+    assert s["frames"] == 8 == _csv_frames(tmp_path / "run") and s["complete"] is False
+    assert (tmp_path / "run" / "plots" / "precision.png").is_file() and s["metrics"]["frames"] == 8
+    assert _verify(tmp_path / "run" / "run.rrd").returncode == 0
+
+
+def test_detect_on_frames_without_detections(tmp_path):
+    root = tmp_path / "flat"
+    (root / "visible").mkdir(parents=True)
+    (root / "infrared").mkdir(parents=True)
+    import cv2
+
+    for i in range(1, 6):
+        cv2.imwrite(str(root / "visible" / f"{i:05d}.jpg"), np.full((48, 64, 3), 90, np.uint8))
+        cv2.imwrite(str(root / "infrared" / f"{i:05d}.jpg"), np.full((48, 64), 90, np.uint8))
+    r = _cli("detect", root, "--out", tmp_path / "det")
+    assert r.returncode == 0, r.stderr
+    assert "0.00 detections per frame" in r.stdout
+    s = _summary(tmp_path / "det")
+    assert s["complete"] and s["frames"] == 5 and s["detections_per_frame"] == 0.0
+
+
+def test_full_disk_leaves_whole_rows_and_a_true_summary(tmp_path, scene):
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=600k", "tmpfs", str(mnt)], capture_output=True).returncode:
+        pytest.skip("cannot mount a small tmpfs here (needs root or a mount namespace)")
+    try:
+        run = mnt / "run"
+        r = _cli("track", scene("crossing2"), "--out", run)
+        assert r.returncode == 1
+        _one_error_line(r.stderr, str(run))
+        s = _summary(run)
+        assert s["complete"] is False and "error" in s
+        assert s["frames"] == _csv_frames(run) and s["frames"] % 16 == 0  # the last checkpoint that fitted
+    finally:
+        subprocess.run(["umount", str(mnt)], capture_output=True)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_sigterm_and_ctrl_c_mid_run_close_every_output(tmp_path, long_scene, sig):
+    run = tmp_path / "run"
+    p = _start("track", long_scene, "--tracker", "mil", "--out", run)
+    _wait_frames(run, 32, p)
+    p.send_signal(sig)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    s = _summary(run)
+    assert s["complete"] is False and s.get("interrupted") is True
+    assert 32 <= s["frames"] < 400 and s["frames"] == _csv_frames(run)
+    assert _verify(run / "run.rrd").returncode == 0
+    assert _rrd_frames(run / "run.rrd") == set(range(1, s["frames"] + 1))
+
+
+def test_sigkill_leaves_a_summary_true_to_the_files(tmp_path, long_scene):
+    run = tmp_path / "run"
+    p = _start("track", long_scene, "--tracker", "mil", "--out", run)
+    _wait_frames(run, 48, p)
+    p.kill()
+    p.communicate(timeout=60)
+    s = _summary(run)
+    assert s["complete"] is False and s["frames"] >= 48
+    assert s["frames"] == _csv_frames(run)  # rows are written at the checkpoints summary.json records
+    assert _verify(run / "run.rrd").returncode != 0  # no footer after a kill ...
+    assert set(range(1, s["frames"] + 1)) <= _rrd_frames(run / "run.rrd")  # ... but every frame the CSVs hold
+
+
+def test_second_ctrl_c_during_finalisation_does_not_lose_the_summary(tmp_path, long_scene):
+    run = tmp_path / "run"
+    p = _start("track", long_scene, "--tracker", "mil", "--out", run)
+    _wait_frames(run, 32, p)
+    p.send_signal(signal.SIGINT)
+    for _ in range(3):  # impatient: more Ctrl-C while the sinks close and the plots are drawn
+        time.sleep(0.1)
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    p.communicate(timeout=120)
+    assert p.returncode == 130
+    s = _summary(run)
+    assert s.get("interrupted") is True and s["frames"] == _csv_frames(run) and s["metrics"] is not None
+    assert _verify(run / "run.rrd").returncode == 0
+
+
+def _children(marker: str) -> list[int]:
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if marker in cmd and " track " in cmd:
+                out.append(int(d.name))
+    return out
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signals are Linux's")
+def test_a_killed_batch_leaves_no_orphan_and_a_report(tmp_path, long_scene):
+    import shutil
+
+    arch = tmp_path / "arch"
+    _tiny(arch / "a", 6)
+    shutil.copytree(long_scene, arch / "b")
+    out = tmp_path / "out"
+    p = _start("batch", arch, "--out", out, "--trackers", "mil", "--workers", "1")
+    _wait_frames(out / "b", 16, p)
+    assert _children(str(arch / "b"))
+    p.kill()
+    p.communicate(timeout=30)
+    t0 = time.monotonic()
+    while _children(str(arch / "b")) and time.monotonic() - t0 < 30:
+        time.sleep(0.1)
+    assert not _children(str(arch / "b")), "the batch's child outlived it"
+    s = _summary(out / "b")  # the child was stopped with SIGTERM: its outputs closed
+    assert s.get("interrupted") is True and s["frames"] == _csv_frames(out / "b")
+    report = json.loads((out / "report.json").read_text())
+    assert report["sequences"]["a"]["status"] == "done"
+
+
+def test_batch_timeout_stops_the_child_with_sigterm_first(tmp_path, long_scene):
+    import shutil
+
+    arch = tmp_path / "arch"
+    shutil.copytree(long_scene, arch / "b")
+    out = tmp_path / "out"
+    r = _cli("batch", arch, "--out", out, "--trackers", "mil", "--timeout", "3")
+    assert r.returncode == 1
+    report = json.loads((out / "report.json").read_text())
+    assert "timed out" in report["sequences"]["b"]["error"]
+    s = _summary(out / "b")
+    assert s.get("interrupted") is True and s["frames"] == _csv_frames(out / "b") > 0
+    assert _verify(out / "b" / "run.rrd").returncode == 0
+
+
+@pytest.mark.parametrize("args, needles", [
+    (["--gt-base", "7"], ["--gt-base must be 0 or 1"]),
+    (["--frames", "0"], ["--frames must be at least 1"]),
+    (["--frames", "-5"], ["--frames must be at least 1"]),
+    (["--init", "3,3,1,1"], ["too small to track", "1x1 px"]),
+])
+def test_rejected_track_options(tmp_path, args, needles):
+    seq = _tiny(tmp_path / "s", 4)
+    r = _cli("track", seq, "--out", tmp_path / "run", *args)
+    _one_error_line(r.stderr, *needles)
+    assert r.returncode == 1 and not (tmp_path / "run").exists()
+
+
+def test_rejected_bench_batch_and_synth_options(tmp_path):
+    seq = _tiny(tmp_path / "s", 4)
+    (tmp_path / "folder").mkdir()
+    cases = [
+        (["bench", seq, "--trackers", ","], ["--trackers names no tracker"]),
+        (["bench", seq, "--json", tmp_path / "folder"], ["is a folder"]),
+        (["batch", tmp_path, "--out", tmp_path / "o", "--timeout", "-1"], ["--timeout must be a positive"]),
+        (["batch", tmp_path, "--out", tmp_path / "o2", "--set", "dual.nope=1"], ["unknown parameter dual.nope"]),
+        (["synth", "random", tmp_path / "x", "--seed", "-1"], ["non-negative"]),
+        (["synth", "crossing2", seq / "visible.txt"], ["is not a folder"]),
+        (["track", seq, "--config", tmp_path / "folder"], ["is a folder"]),
+    ]
+    for argv, needles in cases:
+        r = _cli(*argv)
+        assert r.returncode == 1, (argv, r.stderr)
+        _one_error_line(r.stderr, *needles)
+    assert not (tmp_path / "o2").exists()  # the bad --set stopped the batch before any sequence
+
+
+def test_unreadable_inputs_name_the_file(tmp_path):
+    seq = _tiny(tmp_path / "s", 4)
+    toml = tmp_path / "bad.toml"
+    toml.write_bytes(bytes(range(256)))
+    r = _cli("track", seq, "--out", tmp_path / "run", "--config", toml)
+    _one_error_line(r.stderr, str(toml), "not a TOML file")
+    junk = tmp_path / "junk.csv"
+    junk.write_bytes(np.random.default_rng(0).integers(0, 256, 4000, dtype=np.uint8).tobytes())
+    r = _cli("evaluate", seq, junk)
+    _one_error_line(r.stderr, str(junk))
+
+
+def test_output_under_a_file_and_read_only_folders(tmp_path):
+    seq = _tiny(tmp_path / "s", 4)
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    r = _cli("track", seq, "--out", afile / "run")
+    _one_error_line(r.stderr, "is a file")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(ro)], capture_output=True).returncode:
+        pytest.skip("cannot mount a read-only tmpfs here")
+    try:
+        r = _cli("track", seq, "--out", ro / "run")
+        _one_error_line(r.stderr, str(ro / "run"), "Read-only")
+    finally:
+        subprocess.run(["umount", str(ro)], capture_output=True)
+
+
+def test_row_count_mismatches_and_duplicate_results_are_warnings(tmp_path):
+    seq = _tiny(tmp_path / "s", 6)
+    (seq / "visible.txt").write_text("10,10,10,10\n" * 4)  # 4 rows for 6 frames
+    res = tmp_path / "res.csv"
+    res.write_text("1,1,11,11,10,10,1,-1,-1,-1\n1,1,11,11,10,10,1,-1,-1,-1\n2,1,12,11,10,10,1,-1,-1,-1\n")
+    r = _cli("evaluate", seq, res, "--json")
+    assert r.returncode == 0, r.stderr
+    warnings = [ln for ln in r.stderr.splitlines() if ln.startswith("dualtrack: warning:")]
+    assert any("4 rows for 6 frames" in w for w in warnings) and any("duplicate (frame, id)" in w for w in warnings)
+
+
+def test_bench_reports_failed_sequences_and_prints_the_rest(tmp_path):
+    good = _tiny(tmp_path / "good", 5)
+    bad = _tiny(tmp_path / "bad", 5)
+    (bad / "visible" / "00003.jpg").write_bytes(b"")
+    r = _cli("bench", bad, good, "--trackers", "meanshift")
+    assert r.returncode == 1
+    assert "| good | meanshift |" in r.stdout and "1 failed:" in r.stdout and "00003.jpg" in r.stdout
