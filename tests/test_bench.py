@@ -14,7 +14,7 @@ def test_bench_table_and_json(scene, tmp_path):
         assert 0 <= r["p20"] <= 1 and 0 <= r["auc"] <= 1 and r["end_to_end_vs_decode"] > 0
     assert "camshift" in rows[0]["speed_vs_peers"]
     table = format_table(rows)
-    assert "| sequence | tracker | P@20 | AUC | fps_tracking | fps_end_to_end | fps_decode | e2e/decode |" in table
+    assert "| sequence | tracker | P@20 | AUC | fps_tracking | fps_end_to_end | fps_decode | e2e/decode | e2e/min(trk,dec) |" in table
     assert json.loads((tmp_path / "b.json").read_text())["rows"][1]["tracker"] == "camshift"
 
 
