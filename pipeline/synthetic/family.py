@@ -337,6 +337,12 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
             direction = -side
         else:
             x0 = float(rng.uniform(hw0 + 1, max(W - hw0 - 1, hw0 + 2)))
+            for _ in range(20):  # every target is seen when it is given: none stands in front of another at frame 1
+                clear = all(abs(x0 - float(tr["x"][0])) > hw0 + 0.5 * float(tr["w0"]) or abs(feet[0] - float(tr["feet"][0]))  # type: ignore[index]
+                            > 0.5 * min(hgt[0], float(tr["h"][0])) for tr in tracks)  # type: ignore[index]
+                if clear:
+                    break
+                x0 = float(rng.uniform(hw0 + 1, max(W - hw0 - 1, hw0 + 2)))
         xs, minfo = _x_motion(rng, n, motion, speed, x0, direction, half_w, float(W), leave_at, entry, kind)
         cross = None
         if k > 0 and rng.random() < 0.6:  # a detour that meets an earlier target at frame tc, in front or behind
@@ -376,7 +382,7 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
                             facing=int(direction), ir_contrast=contrast, ir_factor=_crossover_fn(crossover),
                             facing_auto=kind in ("car", "cyclist"), name=f"target {tid}"))
         tracks.append({"x": xs, "feet": feet_arr, "h": hgt, "body": body, "kind": kind, "crossover": crossover,
-                       "actor": len(actors) - 1})
+                       "actor": len(actors) - 1, "w0": float(2 * half_w[0])})
         target_params.append({"id": tid, "kind": kind, "height_px": round(h_px, 1), "ir_contrast": round(contrast, 1),
                               "palette": {"top": list(palette.top), "bottom": list(palette.bottom), "pattern": palette.pattern},
                               "entering": entry, "leaves_at": leave_at + 1 if leave_at is not None else None,
@@ -390,23 +396,40 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
     a1 = actors[0]
     vx1 = np.gradient(x1)  # type: ignore[arg-type]
 
-    def crossing(kind: str, tc: int) -> tuple[np.ndarray, np.ndarray, float, float]:
-        """A path across the target's at frame tc, against its motion (relative speed >= 1.5 px/frame), on a ground
-        row a little in front of or behind it: (centre x, feet row, image height, row offset)."""
+    w1 = np.array([_body(a1.kind, float(h)).w for h in h1])  # type: ignore[union-attr]
+
+    def covered(t: int, ox: float, ow: float, top: float, row: float) -> float:
+        """Share of the target's box that something at ground row ``row`` spanning x in ox +- ow/2 and y from
+        ``top`` to ``row`` covers at frame t (0 when the target stands in front of it)."""
+        if float(feet1[t]) >= row:  # type: ignore[index]
+            return 0.0
+        bx0, bx1 = float(x1[t]) - 0.5 * w1[t], float(x1[t]) + 0.5 * w1[t]  # type: ignore[index]
+        by0, by1 = float(feet1[t] - h1[t]), float(feet1[t])  # type: ignore[index,operator]
+        ix = max(min(bx1, ox + 0.5 * ow) - max(bx0, ox - 0.5 * ow), 0.0)
+        iy = max(min(by1, row) - max(by0, top), 0.0)
+        return ix * iy / max((bx1 - bx0) * (by1 - by0), 1e-9)
+
+    def crossing(kind: str, tc: int, size_of: float | None) -> tuple[np.ndarray, np.ndarray, float, float, float]:
+        """A path across the target's at frame tc, against its motion, on a ground row a little in front of or behind
+        it: (centre x, feet row, image height, row offset, width). Fast enough to pass in under 40 frames (relative
+        speed >= 1.5 px/frame and >= the two widths / 40)."""
         d_t = float(np.sign(vx1[tc])) or float(rng.choice([-1, 1]))  # type: ignore[index]
-        sp = float(rng.uniform(1.0, 3.5))
-        v = -d_t * max(sp, 1.5 + abs(float(vx1[tc])))  # type: ignore[index]
         dy = float(rng.choice([-1, 1]) * rng.uniform(3, 12))
         row = float(feet1[tc]) + dy  # type: ignore[index]
+        hc = size_of if size_of is not None else height_at(kind, row)
+        wc = _body(kind, hc).w
+        v_rel = max(float(rng.uniform(1.0, 3.5)) + abs(float(vx1[tc])), 1.5, (float(w1[tc]) + wc) / 40.0)  # type: ignore[index]
+        v = -d_t * min(v_rel - abs(float(vx1[tc])), MAX_SPEED_PX)  # type: ignore[index]
         t = np.arange(n, dtype=np.float64) - tc
-        return float(x1[tc]) + v * t, np.full(n, row), height_at(kind, row), dy  # type: ignore[index]
+        return float(x1[tc]) + v * t, np.full(n, row), hc, dy, wc  # type: ignore[index]
 
     def add_crossing(role: str, kind: str, tc: int, palette: Palette, contrast: float, body_color, name: str,
-                     size_of: float | None = None) -> bool:
-        xs, row, hc, dy = crossing(kind, tc)
-        hc = size_of if size_of is not None else hc
-        if hc < 6:
-            return False
+                     size_of: float | None = None) -> bool | None:
+        """Add an actor crossing the target at frame tc; None (nothing added) if it would cover the target in
+        the first five frames (the family's rule: a target is seen when it is given)."""
+        xs, row, hc, dy, wc = crossing(kind, tc, size_of)
+        if hc < 6 or any(covered(t, float(xs[t]), wc, float(row[0]) - hc, float(row[0])) > 0.3 for t in range(5)):
+            return None
         b = _body(kind, hc)
         roles[len(actors)] = role
         actors.append(Actor(kind, b.size_px, _array_path(np.column_stack([xs, center_y(row, hc)]), np.ones(n)),
@@ -420,20 +443,21 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
         kind = str(rng.choice(["person", "person", "car"]))
         front = add_crossing("crossing", kind, tc, _random_palette(rng), float(rng.uniform(30, 90)),
                              tuple(int(v) for v in rng.integers(20, 235, 3)), "crossing")
-        events.append({"event": "crossing", "frame": tc + 1, "kind": kind, "in_front": front})
+        if front is not None:
+            events.append({"event": "crossing", "frame": tc + 1, "kind": kind, "in_front": front})
     # a cold colour look-alike (printed cut-out, a mannequin) passing close to the target
     if rng.random() < 0.25:
         tc = int(rng.uniform(0.25, 0.75) * n)
-        add_crossing("look-alike", a1.kind, tc, _lookalike_palette(a1.palette, rng), 0.0, a1.body_color,
-                     "cold look-alike", size_of=float(h1[tc]) * float(rng.uniform(0.9, 1.1)))  # type: ignore[index]
-        events.append({"event": "cold-look-alike", "frame": tc + 1})
+        if add_crossing("look-alike", a1.kind, tc, _lookalike_palette(a1.palette, rng), 0.0, a1.body_color,
+                        "cold look-alike", size_of=float(h1[tc]) * float(rng.uniform(0.9, 1.1))) is not None:  # type: ignore[index]
+            events.append({"event": "cold-look-alike", "frame": tc + 1})
     # a warm distractor of another colour
     if rng.random() < 0.3:
         tc = int(rng.uniform(0.25, 0.75) * n)
         kind = str(rng.choice(["person", "car"]))
-        add_crossing("warm-distractor", kind, tc, _random_palette(rng), float(a1.ir_contrast * rng.uniform(0.9, 1.6)),
-                     tuple(int(v) for v in rng.integers(20, 235, 3)), "warm distractor")
-        events.append({"event": "warm-distractor", "frame": tc + 1, "kind": kind})
+        if add_crossing("warm-distractor", kind, tc, _random_palette(rng), float(a1.ir_contrast * rng.uniform(0.9, 1.6)),
+                        tuple(int(v) for v in rng.integers(20, 235, 3)), "warm distractor") is not None:
+            events.append({"event": "warm-distractor", "frame": tc + 1, "kind": kind})
     # a second warm person walking beside the target for a while
     if a1.kind == "person" and rng.random() < 0.2:
         a = int(rng.uniform(0.1, 0.5) * n)
@@ -456,7 +480,7 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
     # a static occluder on the target's path, standing just in front of it: partial (a low wall, a pole) or full
     if rng.random() < 0.35:
         tc = int(rng.uniform(0.2, 0.8) * n)
-        tw, th = float(_body(a1.kind, float(h1[tc])).w), float(h1[tc])  # type: ignore[index]
+        tw, th = float(w1[tc]), float(h1[tc])  # type: ignore[index]
         row = float(feet1[tc]) + float(rng.uniform(2, 8))  # type: ignore[index]
         kind = str(rng.choice(["full", "low-wall", "pole"]))
         if kind == "full":
@@ -467,11 +491,27 @@ def draw_scene(seed: int, targets: tuple[int, int] | int | None = None, width: i
             ow, oh = max(2.0, tw * float(rng.uniform(0.1, 0.35))), th * float(rng.uniform(1.5, 3.0))
         colour = tuple(int(v) for v in rng.integers(60, 200, 3))
         ox, oy = float(x1[tc]), row - oh / 2  # type: ignore[index]
-        roles[len(actors)] = "occluder"
-        actors.append(Actor("pillar", ow, (lambda t, ox=ox, oy=oy: (ox, oy, 1.0)), depth=row, height_px=oh,
-                            body_color=colour, ir_contrast=float(rng.uniform(-10, 10)), name=f"occluder ({kind})"))  # type: ignore[arg-type]
-        events.append({"event": "occluder", "kind": kind, "frame": tc + 1, "box": [round(ox - ow / 2, 1), round(oy - oh / 2, 1),
-                                                                                   round(ow, 1), round(oh, 1)]})
+        # the family's rules: the target is seen when it is given, and hidden (70 % covered) for at most 40 frames
+        # in a row (narrower occluders where it is slow); an occluder that cannot keep them is left out
+        def hidden_run(width: float) -> tuple[float, int]:
+            cov = [covered(t, ox, width, row - oh, row) for t in range(n)]
+            run = best = 0
+            for c in cov:
+                run = run + 1 if c > 0.7 else 0
+                best = max(best, run)
+            return max(cov[:5]), best
+
+        start_cov, run = hidden_run(ow)
+        while run > 40 and ow > 0.5 * tw:
+            ow *= 0.8
+            start_cov, run = hidden_run(ow)
+        contrast_o = float(rng.uniform(-10, 10))
+        if start_cov <= 0.3 and run <= 40:
+            roles[len(actors)] = "occluder"
+            actors.append(Actor("pillar", ow, (lambda t, ox=ox, oy=oy: (ox, oy, 1.0)), depth=row, height_px=oh,
+                                body_color=colour, ir_contrast=contrast_o, name=f"occluder ({kind})"))  # type: ignore[arg-type]
+            events.append({"event": "occluder", "kind": kind, "frame": tc + 1,
+                           "box": [round(ox - ow / 2, 1), round(oy - oh / 2, 1), round(ow, 1), round(oh, 1)]})
 
     # cast shadows of drawn shapes (visible only; static ones have cooled the ground in IR)
     shadows: list[MaskShadow] = []
