@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.errors import ConfigError
+from pipeline.stages.appearance import AppearanceConfig
 from pipeline.stages.association import AssociationConfig
 from pipeline.stages.contour import ContourConfig
 from pipeline.stages.detection import DetectionConfig
@@ -55,6 +56,8 @@ class PipelineConfig:
         Selective sub-model update (eq. 8-9).
     dual : DualConfig
         The dual-channel tracker.
+    appearance : AppearanceConfig
+        The dual tracker's correlation filter.
     camshift : CamShiftConfig
         OpenCV CamShift peer.
     opencv : OpenCVTrackerConfig
@@ -79,6 +82,7 @@ class PipelineConfig:
     contour: ContourConfig = field(default_factory=ContourConfig)
     model_update: ModelUpdateConfig = field(default_factory=ModelUpdateConfig)
     dual: DualConfig = field(default_factory=DualConfig)
+    appearance: AppearanceConfig = field(default_factory=AppearanceConfig)
     camshift: CamShiftConfig = field(default_factory=CamShiftConfig)
     opencv: OpenCVTrackerConfig = field(default_factory=OpenCVTrackerConfig)
     kalman: KalmanConfig = field(default_factory=KalmanConfig)

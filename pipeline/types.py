@@ -213,6 +213,9 @@ class TargetResult:
         Named scalar diagnostics (``d``, ``area_px2``, ...).
     overlays : Mapping[str, BBox]
         Named auxiliary boxes to draw (``prediction``, ``search``), frame px.
+    decision : str
+        The tracker's decision for this frame and why, ``case:why`` (``contour:contour-and-appearance``);
+        empty for trackers without one.
     """
 
     id: int
@@ -226,6 +229,7 @@ class TargetResult:
     contour: tuple[Points, ...] = ()
     diagnostics: Mapping[str, float] = field(default_factory=dict)
     overlays: Mapping[str, BBox] = field(default_factory=dict)
+    decision: str = ""
 
     def replace(self, **changes: object) -> TargetResult:
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]

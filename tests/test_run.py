@@ -34,7 +34,7 @@ def test_run_folder_contract(scene, tmp_path):
     assert all(len(r) == 10 and r[7:] == ["-1", "-1", "-1"] for r in tracks)
     targets = _csv_rows(out / "targets.csv")
     assert targets[0] == ["frame", "id", "status", "x_px", "y_px", "w_px", "h_px", "source", "iterations", "rho",
-                          "model_update", "diagnostics"]
+                          "model_update", "diagnostics", "decision"]
     assert len(targets) == 1 + 160 * 2
     s = json.loads((out / "summary.json").read_text())
     for k in ("tracker", "sequence", "frames", "targets", "config", "version", "seed", "stage_seconds", "fps_tracking",

@@ -1,80 +1,113 @@
-"""Ablation of the dual tracker's beyond-the-paper steps on the synthetic scenes (issue 3, step 5).
+"""Ablation of the dual tracker: the paper's configuration, the full tracker, and each addition off in turn.
 
-Usage: python tools/ablation_dual.py [--out DIR] [--seed N] [--scenes a,b,...]
+Usage::
 
-Renders the scenes (or reuses DIR/<scene>), runs ``dual`` with every variant on one
-thread, and prints a Markdown table of P@20 / AUC per scene and variant, then the mean
-per-stage time per frame of the full tracker. Variants: ``full`` (defaults), each step
-switched off alone (``-warm-start``, ``-contour-checks``, ``-channel-weighting``,
-``-motion-prior``, ``-closing``), and ``paper`` (all of them off).
+    python tools/ablation_dual.py [--split dev|test] [--count N] [--named] [--out DIR] [--variants a,b,...]
+
+Runs ``dual`` with every variant on the first ``--count`` single-target random scenes of the
+split (``dev`` to decide, ``test`` to report) and, with ``--named``, on the eight named
+synthetic scenes (seed 0), on one thread, and prints a Markdown table of mean P@20 / AUC,
+the 10th percentile of P@20, and the median tracking rate per variant, then the mean
+per-stage time per frame of the full tracker. ``paper`` is ``data/dual-paper.toml``.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import tempfile
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-VARIANTS = {
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "data" / "dual-paper.toml"
+
+VARIANTS: dict[str, list[str]] = {
     "full": [],
-    "-warm-start": ["contour.warm_start=false"],
+    "-appearance": ["dual.appearance_cue=false"],
+    "-redetect": ["dual.redetect=false"],
+    "-filter-colour": ["appearance.colour=false"],
+    "-filter-visible-gradients": ["appearance.visible_gradients=false"],
+    "-filter-ir": ["appearance.infrared=false"],
+    "-filter-balance": ["appearance.balance_groups=false"],
+    "-filter-scale": ["appearance.scale_filter=false"],
     "-contour-checks": ["dual.contour_checks=false"],
     "-channel-weighting": ["dual.channel_weighting=false"],
     "-motion-prior": ["dual.motion_prior=false"],
+    "-warm-start": ["contour.warm_start=false"],
     "-closing": ["contour.closing_fraction=0"],
-    "paper": ["contour.warm_start=false", "dual.contour_checks=false", "dual.channel_weighting=false",
-              "dual.motion_prior=false", "contour.closing_fraction=0"],
+    "paper": [],  # data/dual-paper.toml
 }
-SCENES = ("shadows", "dusk", "approach", "lookalike", "hot-distractor", "crossover", "occluder", "fast")
+NAMED = ("shadows", "dusk", "approach", "lookalike", "hot-distractor", "crossover", "occluder", "fast")
+
+
+def _p10(xs: list[float]) -> float:
+    import numpy as np
+
+    return float(np.percentile(xs, 10)) if xs else float("nan")
 
 
 def main() -> None:
     import cv2
-    import numpy as np
 
-    from pipeline.run import RunOptions, run_track
+    from pipeline.bench import random_scene_set, run_bench
     from pipeline.synthetic import synthesize
 
     ap = argparse.ArgumentParser()
+    ap.add_argument("--split", choices=("dev", "test"), default="dev")
+    ap.add_argument("--count", type=int, default=30)
+    ap.add_argument("--named", action="store_true", help="also the eight named scenes (seed 0)")
     ap.add_argument("--out", type=Path)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--variants", default=",".join(VARIANTS))
     a = ap.parse_args()
     cv2.setNumThreads(1)
-    scenes = [s for s in a.scenes.split(",") if s]
+    variants = [v for v in a.variants.split(",") if v]
+    for v in variants:
+        if v not in VARIANTS:
+            raise SystemExit(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
     with tempfile.TemporaryDirectory() as tmp:
         root = a.out or Path(tmp)
-        results: dict[str, dict[str, tuple[float, float]]] = {}
+        sets_of = {"random": random_scene_set(a.count, a.split, targets=(1, 1), out=root / "scenes")}
+        if a.named:
+            named = []
+            for sc in NAMED:
+                d = root / "named" / sc
+                if not d.exists():
+                    synthesize(sc, d, seed=0)
+                named.append(d)
+            sets_of["named"] = named
+        table: dict[str, dict[str, tuple[float, float, float, float]]] = {}
         stages: dict[str, float] = {}
         frames = 0
-        for sc in scenes:
-            d = root / sc
-            if not d.exists():
-                synthesize(sc, d, seed=a.seed)
-            for name, sets in VARIANTS.items():
-                r = run_track(d, RunOptions(tracker="dual", out_dir=root / "runs" / name / sc, rrd=False, plots=False,
-                                            force=True, sets=sets))
-                m = r.summary["metrics"]
-                results.setdefault(name, {})[sc] = (m["p20"], m["auc"])
-                if name == "full":
-                    n = r.summary["frames"]
-                    frames += n
-                    for k, v in r.summary["stage_seconds"].items():
-                        stages[k] = stages.get(k, 0.0) + v
-        head = "| variant | " + " | ".join(scenes) + " | mean P@20 | mean AUC |"
-        print(head)
-        print("|" + "---|" * (len(scenes) + 3))
-        for name, per in results.items():
-            cells = [f"{per[s][0]:.2f} / {per[s][1]:.2f}" for s in scenes]
-            mp = np.mean([per[s][0] for s in scenes])
-            ma = np.mean([per[s][1] for s in scenes])
-            print(f"| {name} | " + " | ".join(cells) + f" | {mp:.3f} | {ma:.3f} |")
+        for v in variants:
+            cfg = PAPER if v == "paper" else None
+            for what, dirs in sets_of.items():
+                rows = [r for r in run_bench(dirs, ["dual"], out=root / "runs" / v / what, sets=VARIANTS[v],
+                                             config_path=cfg) if "p20" in r]
+                p20 = [float(r["p20"]) for r in rows]
+                auc = [float(r["auc"]) for r in rows]
+                fps = [float(r["fps_tracking"]) for r in rows]
+                table.setdefault(v, {})[what] = (statistics.mean(p20), statistics.mean(auc), _p10(p20),
+                                                 statistics.median(fps))
+                if v == "full":
+                    for r in rows:
+                        frames += int(r["frames"])
+                        for k, s in dict(r["stage_seconds"]).items():
+                            stages[k] = stages.get(k, 0.0) + float(s)
+        head = "| variant |" + "".join(f" {w}: P@20 / AUC (p10 P@20) | {w}: fps |" for w in sets_of)
+        print(f"dual on {a.count} single-target {a.split} scenes" + (" and the eight named scenes" if a.named else ""))
         print()
-        print("per-stage time of the full tracker, ms per frame: " + ", ".join(
-            f"{k} {1e3 * v / frames:.2f}" for k, v in stages.items() if k not in ("decode", "sinks")))
+        print(head)
+        print("|---|" + "---|---|" * len(sets_of))
+        for v, per in table.items():
+            cells = "".join(f" {p:.3f} / {u:.3f} ({q:.3f}) | {f:.0f} |" for p, u, q, f in (per[w] for w in sets_of))
+            print(f"| {v} |{cells}")
+        if frames:
+            print()
+            print("per-stage time of the full tracker, ms per frame: " + ", ".join(
+                f"{k} {1e3 * s / frames:.2f}" for k, s in stages.items() if k not in ("decode", "sinks", "tracker")))
 
 
 if __name__ == "__main__":

@@ -10,9 +10,11 @@ the project writes and reads is too), so TrackEval and py-motmetrics score a run
 it is; ``targets.csv`` keeps the 0-based continuous convention of the rest of dualtrack.
 
 ``targets.csv``: header; ``frame,id,status,x_px,y_px,w_px,h_px,source,iterations,rho,
-model_update,diagnostics`` for every target every frame. ``iterations`` lists the
-iterations per stage (``meanshift=4;levelset=37``), ``model_update`` the decision and
-its reason (``updated:rho-high``), ``diagnostics`` named values (``d=0.31;area_px2=812``).
+model_update,diagnostics,decision`` for every target every frame. ``iterations`` lists the
+iterations per stage (``meanshift=4;levelset=37``), ``model_update`` the model-update decision
+and its reason (``updated:rho-high``), ``diagnostics`` named values (``d=0.31;area_px2=812``),
+``decision`` the tracker's case for the frame and why (``appearance:appearance-contour-leak``;
+empty for trackers without one).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from pipeline.types import FrameResult
 
 TARGETS_HEADER = (
     "frame", "id", "status", "x_px", "y_px", "w_px", "h_px", "source", "iterations", "rho", "model_update", "diagnostics",
+    "decision",
 )
 
 
@@ -68,7 +71,7 @@ class CsvSink:
             self._gw.writerow([
                 f, t.id, t.status.value, _num(b.x), _num(b.y), _num(b.w), _num(b.h), t.source,
                 _pairs(t.iterations), _num(t.rho) if not math.isnan(t.rho) else "", t.model_update,
-                _pairs(t.diagnostics),
+                _pairs(t.diagnostics), t.decision,
             ])
 
     def checkpoint(self) -> None:

@@ -5,7 +5,7 @@ bytes passed through as ``EncodedImage``; frames without source bytes, e.g. from
 video, are JPEG-encoded once), ``visible/targets`` and ``infrared/targets`` (Boxes2D,
 class id = track id, label ``T<id> <status>``; occluded boxes, and merged targets other than the merge's
 foreground, are drawn with a thinner line), ``infrared/contours`` (LineStrips2D), ``events`` (TextLog), ``targets/<id>/status``
-(StateChange), ``metrics/<id>/center_error_px`` (Scalars, when truth exists),
+(StateChange), ``targets/<id>/decision`` (StateChange ``case:why``, for trackers that report one), ``metrics/<id>/center_error_px`` (Scalars, when truth exists),
 ``timing/<stage>_ms``, and the resolved config as a static ``config`` document. With
 ground truth, also ``visible/truth`` and ``infrared/truth`` (Boxes2D, each channel's own
 truth, white, label ``GT <id>``), ``metrics/<id>/iou`` (Scalars, beside the centre error)
@@ -118,6 +118,7 @@ class RerunSink:
         self._buf: dict[str, list] = defaultdict(list)
         self._frames: list[int] = []
         self._status: dict[int, TargetStatus] = {}
+        self._decision: dict[int, str] = {}
         self._known_ids: set[int] = set()
         self._closed = False
         self._start_message = start_message
@@ -203,6 +204,9 @@ class RerunSink:
             if self._status.get(t.id) != t.status:
                 self._status[t.id] = t.status
                 self._buf[f"targets/{t.id}/status"].append((f, t.status.value))
+            if t.decision and self._decision.get(t.id) != t.decision:
+                self._decision[t.id] = t.decision
+                self._buf[f"targets/{t.id}/decision"].append((f, t.decision))
         for ev in result.events:
             self._buf["events"].append((f, f"[{ev.kind.value}] {ev.text}", ev.kind.value))
         if truth is not None:
@@ -289,7 +293,7 @@ class RerunSink:
                 rec.send_columns("events", indexes=idx, columns=rr.TextLog.columns(
                     text=[r[1] for r in rows],
                     level=[EVENT_LEVEL.get(r[2], rr.TextLogLevel.INFO) for r in rows]))
-            elif key.endswith("/status") or key.endswith("/truth"):
+            elif key.endswith("/status") or key.endswith("/truth") or key.endswith("/decision"):
                 rec.send_columns(key, indexes=idx, columns=rr.StateChange.columns(state=[r[1] for r in rows]))
             else:
                 rec.send_columns(key, indexes=idx, columns=rr.Scalars.columns(

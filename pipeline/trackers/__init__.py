@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from pipeline.errors import InputError
-from pipeline.stages import contour, histogram
+from pipeline.stages import appearance, contour, histogram
 from pipeline.trackers import detect as _detect
 from pipeline.trackers import dual as _dual
 from pipeline.trackers import kalman_camshift as _kc
@@ -27,7 +27,7 @@ def _engine(name: str, init: Callable, step: Callable, *warm_ups: Callable[[], N
 
 
 _FACTORIES: dict[str, Callable[[object], Engine]] = {
-    "dual": _engine("dual", _dual.init, _dual.step, histogram.warm_up, contour.warm_up),
+    "dual": _engine("dual", _dual.init, _dual.step, histogram.warm_up, contour.warm_up, appearance.warm_up),
     "meanshift": _engine("meanshift", _meanshift.init, _meanshift.step, histogram.warm_up),
     "kalman-camshift": _engine("kalman-camshift", _kc.init, _kc.step, histogram.warm_up),
     "detect": lambda cfg: FunctionalEngine("detect", _detect.init, _detect.step, cfg),

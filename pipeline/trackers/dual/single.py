@@ -1,0 +1,134 @@
+"""One target, one frame: cues, the decision, the updates, the events and the reported result."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from pipeline.io.sequence import FramePair
+from pipeline.stages.contour import ContourResult, extract_contour
+from pipeline.trackers.dual.config import DualConfig
+from pipeline.trackers.dual.cues import ColourStep, add_time, appearance_cue, filter_images, match_at
+from pipeline.trackers.dual.decide import Case, Decision, Evidence, decide
+from pipeline.trackers.dual.update import fused_size, motion_update, update_appearance, update_colour_model
+from pipeline.types import BBox, Event, EventKind, TargetResult, TargetStatus
+
+CONFIDENCE = {TargetStatus.TRACKING: 1.0, TargetStatus.OCCLUDED_PARTIAL: 0.6, TargetStatus.OCCLUDED_SEVERE: 0.3}
+
+
+def outside(box: BBox, shape: tuple[int, ...]) -> bool:
+    """Less than a quarter of the box lies inside the frame."""
+    return box.clip(shape[1], shape[0]).area < 0.25 * box.area
+
+
+def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
+    """Where the level set starts: the filter's detection when it is confident, the mean shift when its colour
+    match is good (or the paper's way, without the channel weighting or the motion prior), else the prediction."""
+    if cue is not None and cue.psr >= dcfg.psr_confident:
+        return cue.box.center
+    if (cs.informative and cs.rho1 >= dcfg.occlusion_rho) or not (dcfg.channel_weighting and dcfg.motion_prior):
+        return cs.y1
+    return cs.y0
+
+
+def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, timing: dict[str, float],
+                  start: tuple[float, float] | None = None, events_in: list[Event] | None = None):
+    """Contour, decision, size, models and motion for one target that is not merged: (new state, result, events).
+
+    ``start`` forces a cold contour start there (a blob after a split), which starts the re-merge hold."""
+    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
+    t, prior = cs.t, cs.prior
+    ir = frames.infrared if mode in ("dual", "ir") else None
+    H, W = frames.shape
+    cue = appearance_cue(frames, cs, cfg, mode, timing, frames.index)
+    clock = time.perf_counter()
+
+    # the IR contour, started where the other cues put the target
+    c: ContourResult | None = None
+    if ir is not None:
+        yc, memory = (start, None) if start is not None else (contour_start(cs, cue, dcfg), t.memory)
+        expected = BBox.from_center(yc[0], yc[1], t.size[0], t.size[1])
+        shift = (yc[0] - t.memory_center[0], yc[1] - t.memory_center[1])
+        c = extract_contour(ir, expected, cfg.contour, cfg.levelset, memory, shift)  # type: ignore[attr-defined]
+        clock = add_time(timing, "levelset", clock)
+    contour_usable = c is not None and c.box is not None and (
+        c.ok or not dcfg.contour_checks or (not dcfg.channel_weighting and c.reason == "low-contrast"))
+    mmf = cfg.meanshift.min_mass_fraction  # type: ignore[attr-defined]
+    rho_c = match_at(cs.bins, t.q, c.box, cs.roi0, mmf) if (
+        contour_usable and cs.informative and cs.bins is not None and c is not None and c.box is not None) else float("nan")
+
+    rho_a = match_at(cs.bins, t.q, cue.box, cs.roi0, mmf) if (
+        cue is not None and cs.informative and cs.bins is not None) else float("nan")
+    ref = t.reference_size
+    ev = Evidence(
+        measured_last=t.missing == 0 or start is not None,
+        missing=t.missing, prior=BBox.from_center(float(prior.x[0]), float(prior.x[1]), ref[0], ref[1]), ref_size=ref,
+        colour_informative=cs.informative and mode != "ir" or (mode == "ir" and not math.isnan(cs.rho1)),
+        rho_meanshift=cs.rho1, meanshift_box=cs.box1 if not math.isnan(cs.rho1) else None,
+        contour_box=c.box if contour_usable and c is not None else None, contour_ok=bool(c is not None and c.ok),
+        contour_reason=c.reason if c is not None else "no-contour", rho_contour=rho_c,
+        appearance_box=cue.box if cue is not None else None, psr=cue.psr if cue is not None else float("nan"),
+        rho_appearance=rho_a, last=t.box, support=cue.support if cue is not None else (math.nan, math.nan),
+        redetected=bool(cue is not None and cue.redetected), outside=outside(prior.box, (H, W)))
+    decision: Decision = decide(ev, dcfg)
+    if start is not None and not decision.measured and c is not None and c.box is not None:
+        # the blob a split re-associated this target with is its measurement
+        decision = Decision(Case.CONTOUR, c.box, 1.0, TargetStatus.TRACKING, "split-blob", True, False, "levelset")
+
+    # size, output box, models
+    size, app_size = fused_size(t.size, t.app_size, decision, c, cue, dcfg, cfg.contour.min_contrast)  # type: ignore[attr-defined]
+    if decision.measured:
+        assert decision.box is not None
+        out = BBox.from_center(decision.box.cx, decision.box.cy, size[0], size[1])
+        missing_n = 0
+    else:
+        out = BBox.from_center(float(prior.x[0]), float(prior.x[1]), ref[0], ref[1])
+        missing_n = t.missing + 1
+    q, colour_decision, rho2 = update_colour_model(t.q, cs.bins, cs.roi0, out, decision.learn, decision.measured, cfg)
+    vis, irf = filter_images(frames, mode)
+    model = update_appearance(t.appearance, vis, irf, BBox.from_center(out.cx, out.cy, *app_size), decision,
+                              colour_decision, cs.informative, cfg.appearance)  # type: ignore[attr-defined]
+    events: list[Event] = list(events_in or [])
+    if not colour_decision.update and t.last_update.startswith("updated") and colour_decision.reason != "colour-uninformative":
+        events.append(Event(EventKind.MODEL_FROZEN, f"T{t.id} model frozen ({colour_decision.reason})", (t.id,)))
+    clock = add_time(timing, "model_update", clock)
+    kf, history, out = motion_update(cs, decision, out, frames.index, dcfg, cfg.kalman, t.history)  # type: ignore[attr-defined]
+    add_time(timing, "kalman", clock)
+
+    status = decision.status
+    if status != t.status:
+        if status == TargetStatus.LOST:
+            events.append(Event(EventKind.LOST, f"T{t.id} lost ({decision.why.replace('-', ' ')})", (t.id,)))
+        elif t.status == TargetStatus.LOST:
+            events.append(Event(EventKind.REACQUIRED, f"T{t.id} re-acquired ({decision.why})", (t.id,)))
+        elif status.is_occluded and not t.status.is_occluded:
+            events.append(Event(EventKind.OCCLUSION_START, f"T{t.id} {status} ({decision.why}, contour "
+                                f"{c.reason if c is not None else 'none'})", (t.id,)))
+        elif not status.is_occluded and t.status.is_occluded:
+            events.append(Event(EventKind.OCCLUSION_END, f"T{t.id} visible again ({decision.why})", (t.id,)))
+
+    good_contour = decision.case == Case.CONTOUR and c is not None and c.box is not None
+    nt = dataclasses.replace(
+        t, box=out, size=size, app_size=app_size, q=q, status=status, kf=kf,
+        memory=c.memory if good_contour and c is not None else t.memory,
+        memory_center=c.box.center if good_contour and c is not None and c.box is not None else t.memory_center,
+        history=history, missing=missing_n, last_update=str(colour_decision),
+        split_frame=frames.index if start is not None else t.split_frame, appearance=model, case=decision.case.value)
+    diag = {"rho_y1": cs.rho1, "rho_y2": rho2, "rho_contour": rho_c, "contrast": c.contrast if c is not None else math.nan,
+            "bright_fraction": cs.bright, "missing": float(missing_n), "components": float(len(c.components)) if c else 0.0,
+            "psr": cue.psr if cue is not None else math.nan, "scale_factor": cue.scale_factor if cue is not None else math.nan,
+            "psr_visible": cue.support[0] if cue is not None else math.nan,
+            "psr_ir": cue.support[1] if cue is not None else math.nan, "rho_appearance": rho_a}
+    overlays = {"prediction": prior.box, "meanshift": cs.box1}
+    if cue is not None:
+        overlays["appearance"] = cue.box
+    res = TargetResult(
+        t.id, out, status, decision.stage, {"meanshift": cs.ms_iters, "levelset": c.iterations if c else 0},
+        rho2 if not np.isnan(rho2) else cs.rho1,
+        f"{colour_decision}" + ("" if c is None or c.ok else f";contour-{c.reason}"),
+        CONFIDENCE.get(status, 0.0), c.contour if c is not None and c.box is not None else (), diag, overlays,
+        decision=f"{decision.case.value}:{decision.why}")
+    return nt, res, events

@@ -1,0 +1,75 @@
+"""Per-target and per-frame state of the dual tracker (frozen; every step makes new ones)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from statistics import median
+
+import numpy as np
+
+from pipeline.stages import kalman
+from pipeline.stages.appearance import AppearanceModel
+from pipeline.stages.contour import LevelSetMemory
+from pipeline.types import BBox, TargetStatus
+
+
+@dataclass(frozen=True)
+class DualTarget:
+    """One target: where it is, its models, and how long it has been missing.
+
+    ``size`` is the kernel (w, h) of the next search (the paper's h); ``q`` the colour (or IR
+    intensity) histogram of the mean-shift cue; ``appearance`` the correlation filter;
+    ``app_size`` the size the filter's own scale estimate follows (no contour enters it, so a
+    leaking or partial contour is measured against it); ``memory`` the last good level set and
+    ``memory_center`` the target centre it was made at;
+    ``history`` the recent clean measurements ``(frame, cx, cy, w, h)``.
+    """
+
+    id: int
+    box: BBox
+    size: tuple[float, float]
+    q: np.ndarray
+    status: TargetStatus
+    kf: kalman.GaussianState
+    memory: LevelSetMemory | None = None
+    memory_center: tuple[float, float] = (0.0, 0.0)
+    history: tuple[tuple[float, float, float, float, float], ...] = ()
+    missing: int = 0
+    last_update: str = "none"
+    split_frame: int = -1_000_000  # frame of the last split from a merge (re-merge hysteresis)
+    appearance: AppearanceModel | None = None
+    app_size: tuple[float, float] = (0.0, 0.0)  # the filter's own size estimate (its scale filter's track)
+    case: str = "init"
+
+    @property
+    def reference_size(self) -> tuple[float, float]:
+        """(w, h) in its recent clean frames (median), or its current size."""
+        if len(self.history) >= 3:
+            return median(r[3] for r in self.history), median(r[4] for r in self.history)
+        return self.size
+
+    @property
+    def reference_area(self) -> float:
+        """Box area in its recent clean frames (median), or of its current size."""
+        if len(self.history) >= 3:
+            return median(r[3] * r[4] for r in self.history)
+        return self.size[0] * self.size[1]
+
+
+@dataclass(frozen=True)
+class GroupMemory:
+    """The level set of a merged group, kept for the next frame's warm start."""
+
+    members: tuple[int, ...]
+    memory: LevelSetMemory
+    center: tuple[float, float]
+    foreground: int
+
+
+@dataclass(frozen=True)
+class DualState:
+    """Every target, the mode (``dual``: both channels, ``ir`` or ``visible``: one) and the merged groups."""
+
+    targets: tuple[DualTarget, ...]
+    mode: str
+    groups: tuple[GroupMemory, ...] = ()

@@ -1,0 +1,130 @@
+"""The correlation-filter appearance cue: features, planted shifts and scales recovered, PSR, channels, update."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from pipeline.stages import appearance as A
+from pipeline.types import BBox
+
+H, W = 240, 320
+CENTRE = (160.0, 120.0)
+
+
+@pytest.fixture(scope="module")
+def textured():
+    """A smooth random colour texture (the visible frame) and its luminance (the IR frame)."""
+    rng = np.random.default_rng(0)
+    base = cv2.GaussianBlur(rng.integers(0, 255, (H, W, 3)).astype(np.float32), (0, 0), 2.0)
+    vis = cv2.normalize(base, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+    return vis, cv2.cvtColor(vis, cv2.COLOR_BGR2GRAY)
+
+
+def warp(img, dx, dy, s):
+    """``img`` scaled by ``s`` about CENTRE and moved by (dx, dy) px."""
+    M = np.array([[s, 0, (1 - s) * CENTRE[0] + dx], [0, s, (1 - s) * CENTRE[1] + dy]], np.float64)
+    return cv2.warpAffine(img, M, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+
+@pytest.mark.parametrize("dx, dy", [(3.4, -2.2), (-6.0, 4.0), (8.0, 0.0), (0.0, 0.0)])
+def test_a_planted_shift_is_found_in_one_detection(textured, dx, dy):
+    vis, ir = textured
+    cfg = A.AppearanceConfig()
+    model = A.train(vis, ir, BBox.from_center(*CENTRE, 40, 60), cfg)
+    d = A.detect(model, warp(vis, dx, dy, 1.0), warp(ir, dx, dy, 1.0), CENTRE, cfg)
+    assert d.center[0] - CENTRE[0] == pytest.approx(dx, abs=1.0)
+    assert d.center[1] - CENTRE[1] == pytest.approx(dy, abs=1.0)
+    assert d.scale_factor == pytest.approx(1.0, abs=0.01)
+    assert d.psr > 20
+
+
+@pytest.mark.parametrize("dx, dy, s", [(0.0, 0.0, 1.06), (3.4, -2.2, 1.06), (-6.0, 4.0, 0.95), (2.0, 2.0, 0.92)])
+def test_a_planted_shift_and_scale_are_recovered(textured, dx, dy, s):
+    """As the tracker does over frames: each detection starts where the previous one ended, at its size."""
+    vis, ir = textured
+    cfg = A.AppearanceConfig()
+    model = A.train(vis, ir, BBox.from_center(*CENTRE, 40, 60), cfg)
+    v2, i2 = warp(vis, dx, dy, s), warp(ir, dx, dy, s)
+    center, size = CENTRE, (40.0, 60.0)
+    first = A.detect(model, v2, i2, center, cfg, size=size)
+    assert (first.scale_factor - 1.0) / (s - 1.0) >= 0.15  # the first detection already moves towards it
+    for _ in range(3):
+        d = A.detect(model, v2, i2, center, cfg, size=size)
+        center, size = d.center, d.size
+    assert center[0] - CENTRE[0] == pytest.approx(dx, abs=0.5)
+    assert center[1] - CENTRE[1] == pytest.approx(dy, abs=0.5)
+    assert size[0] / 40.0 == pytest.approx(s, rel=0.01)
+    assert size[1] / size[0] == pytest.approx(1.5, rel=1e-9)  # the scale filter keeps the aspect
+
+
+def test_psr_is_high_on_the_target_and_low_elsewhere(textured):
+    vis, ir = textured
+    cfg = A.AppearanceConfig()
+    model = A.train(vis, ir, BBox.from_center(*CENTRE, 40, 60), cfg)
+    on = A.detect(model, vis, ir, CENTRE, cfg)
+    rng = np.random.default_rng(5)
+    other = cv2.GaussianBlur(rng.integers(0, 255, (H, W, 3)).astype(np.float32), (0, 0), 2.0)
+    other = cv2.normalize(other, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+    off = A.detect(model, other, cv2.cvtColor(other, cv2.COLOR_BGR2GRAY), CENTRE, cfg)
+    assert on.psr > 40 and off.psr < 8
+    assert min(on.support) > 15  # both channels support the joint peak on the target
+
+
+def test_psr_of_a_single_peak_and_of_flat_noise():
+    r = np.zeros((21, 21))
+    r[10, 10] = 1.0
+    r[0, 0] = r[20, 20] = 0.1
+    assert A.psr(r, 10, 10) > 50
+    flat = np.random.default_rng(1).normal(size=(21, 21))
+    iy, ix = np.unravel_index(int(np.argmax(flat)), flat.shape)
+    assert A.psr(flat, int(iy), int(ix)) < 5
+    assert A.psr(np.ones((9, 9)), 4, 4) == 0.0
+
+
+def test_channels_follow_the_frames_present(textured):
+    vis, ir = textured
+    cfg = A.AppearanceConfig()
+    box = BBox.from_center(*CENTRE, 40, 60)
+    assert A.features(vis[:64, :32], None, cfg).shape == (16, 8, len(A.channel_names(cfg, True, False)))
+    assert A.features(None, ir[:64, :32], cfg).shape == (16, 8, len(A.channel_names(cfg, False, True)))
+    assert A.channel_names(cfg, True, True) == A.channel_names(cfg, True, False) + A.channel_names(cfg, False, True)
+    for v, i in ((vis, None), (None, ir)):
+        m = A.train(v, i, box, cfg)
+        d = A.detect(m, None if v is None else warp(v, 2, 1, 1), None if i is None else warp(i, 2, 1, 1), CENTRE, cfg)
+        assert d.center == pytest.approx((CENTRE[0] + 2, CENTRE[1] + 1), abs=1.0)
+        assert np.isnan(d.support[1 if v is not None else 0])
+    m = A.train(vis, None, box, cfg)
+    with pytest.raises(ValueError, match="channels"):
+        A.detect(m, vis, ir, CENTRE, cfg)
+
+
+def test_group_gains_balance_the_feature_groups():
+    f = np.zeros((4, 4, 4), np.float32)
+    f[..., 0], f[..., 1], f[..., 2], f[..., 3] = 0.2, 3.0, 4.0, 0.0
+    g = A.group_gains(f, np.array([0, 1, 1, 3]))
+    assert g[0] == pytest.approx(5.0)
+    assert g[1] == g[2] == pytest.approx(0.2)  # sqrt(9 + 16) = 5
+    assert g[3] == 0.0  # a group without energy is left out
+
+
+def test_update_blends_at_the_rate_and_keeps_the_templates(textured):
+    vis, ir = textured
+    cfg = A.AppearanceConfig()
+    box = BBox.from_center(*CENTRE, 40, 60)
+    m = A.train(vis, ir, box, cfg)
+    same = A.update(m, vis, ir, box, cfg, rate=0.0, scale_rate=0.0)
+    assert same is m
+    wide = BBox.from_center(*CENTRE, 60, 60)  # another aspect: learned on the model's own templates
+    u = A.update(m, vis, ir, wide, cfg, rate=0.5)
+    assert u.num.shape == m.num.shape and u.s_num.shape == m.s_num.shape and u.frames == 2
+    new = A.train(vis, ir, wide, cfg, like=m)
+    np.testing.assert_allclose(u.num, 0.5 * m.num + 0.5 * new.num, rtol=1e-6, atol=1e-6)
+
+
+def test_bad_configs_are_rejected():
+    for kw in ({"cell_px": 1}, {"padding": 9}, {"scale_count": 4}, {"learning_rate": 2}, {"lambda_reg": 0},
+               {"colour_weight": -1}, {"intensity_clip": -1}):
+        with pytest.raises(ValueError, match="appearance"):
+            A.AppearanceConfig(**kw)
