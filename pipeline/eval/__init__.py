@@ -75,7 +75,7 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
     if multi is None:
         multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
     data = mot.sequence_data(gt, tracks.boxes, n_frames)
-    id_info = mot.idf1(gt, tracks.boxes, data=data) if tracks.boxes else {"idf1": 0.0, "mapping": {}}
+    id_info = mot.idf1(gt, tracks.boxes, data=data) if tracks.boxes else {"idf1": 0.0, "idp": 0.0, "idr": 0.0, "mapping": {}}
     which = track_for_truth(ids, tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]
     empty = np.full((n_frames, 4), np.nan)
 

@@ -86,3 +86,12 @@ def test_evaluate_object_keys():
         assert k in out
     assert out["p20"] == 1.0 and out["targets"]["1"]["auc"] == pytest.approx(20 / 21)
     assert "mota" not in out  # one target: no MOT keys
+
+
+def test_evaluate_many_targets_with_no_track_at_all():
+    """A detector that found nothing: every identity score is 0, nothing is left out."""
+    gt = np.array([[0, 0, 10, 10]] * 3, float)
+    truth = Truth({"infrared": {1: gt, 2: gt + 20}})
+    out = evaluate(truth, TrackTable({}, {}), 3)
+    assert out["idf1"] == out["idp"] == out["idr"] == 0.0
+    assert out["p20"] == 0.0 and out["mota"] == 0.0
