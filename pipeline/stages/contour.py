@@ -134,6 +134,7 @@ class ContourResult:
     memory: LevelSetMemory
     components: tuple[BBox, ...] = field(default_factory=tuple)
     warm: bool = False
+    at_border: tuple[bool, bool] = (False, False)  # the selection reaches the frame's border along x / y
 
 
 def region(expected: BBox, cfg: ContourConfig, width: int, height: int) -> tuple[int, int, int, int]:
@@ -330,6 +331,8 @@ def extract_contour(
     bx, by, bw, bh = cv2.boundingRect(sel_u8)
     h, w = mask.shape
     touches = by <= 1 or bx <= 1 or by + bh - 1 >= h - 2 or bx + bw - 1 >= w - 2
+    at_border = ((bx <= 1 and x0 == 0) or (bx + bw - 1 >= w - 2 and x1 == W),
+                 (by <= 1 and y0 == 0) or (by + bh - 1 >= h - 2 and y1 == H))
     left, top, right, bottom = _subpixel_box(phi, sel)
     box = BBox(left + x0, top + y0, right - left, bottom - top)
     contrast = _ring_contrast(roi, sel_u8)
@@ -347,7 +350,8 @@ def extract_contour(
         reason = "shape-change"
     elif abs(contrast) < cfg.min_contrast:
         reason = "low-contrast"
-    return ContourResult(reason == "ok", reason, box, contour, res.iterations, contrast, mem, tuple(comps), warm)
+    return ContourResult(reason == "ok", reason, box, contour, res.iterations, contrast, mem, tuple(comps), warm,
+                         at_border)
 
 
 @cache

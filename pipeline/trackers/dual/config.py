@@ -54,8 +54,8 @@ class DualConfig:
         and gates their re-acquisition; default True (False starts from the last position).
     redetect : bool
         Beyond the paper: a hidden or lost target is searched for by its filter in a region
-        that widens while it is missing and, after ``redetect_global_after_frames``, over the
-        whole frame; default True.
+        that widens while it is missing and, after ``redetect_global_after_frames``, at the
+        regions the STDM detector finds in the whole frame; default True.
     redetect_radius_px_per_frame : float
         The search region around a hidden target's prediction grows by this per missing
         frame, px, >= 0; default 3.
@@ -63,6 +63,9 @@ class DualConfig:
         Missing frames after which the whole frame is searched, >= 1; default 12.
     redetect_every_frames : int
         A missing target is searched for every this many frames, >= 1; default 2.
+    redetect_candidates : int
+        At most this many places are tried by one search, >= 1; default 12 (a larger region
+        is covered over successive searches). The cost of a search grows with it.
     colour_min_value : int
         Visible pixels darker than this (HSV value) carry no colour, in [0, 255]; default 40.
     colour_min_fraction : float
@@ -151,6 +154,7 @@ class DualConfig:
     redetect_radius_px_per_frame: float = 3.0
     redetect_global_after_frames: int = 12
     redetect_every_frames: int = 2
+    redetect_candidates: int = 12
     colour_min_value: int = 40
     colour_min_fraction: float = 0.3
     colour_min_rho: float = 0.6
@@ -213,5 +217,6 @@ class DualConfig:
         integer("split_hold_frames", 0)
         integer("redetect_global_after_frames", 1)
         integer("redetect_every_frames", 1)
+        integer("redetect_candidates", 1)
         if self.merge_position not in ("auto", "eq11", "motion"):
             raise ValueError(f"dual.merge_position must be auto, eq11 or motion; got {self.merge_position!r}")

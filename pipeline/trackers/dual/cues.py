@@ -15,7 +15,7 @@ import numpy as np
 
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
-from pipeline.stages import kalman
+from pipeline.stages import detection, kalman
 from pipeline.stages.histogram import appearance_bins, bhattacharyya, bright_fraction, ellipse_model, search_roi
 from pipeline.stages.meanshift import mean_shift
 from pipeline.stages.motion import hold_rates
@@ -149,23 +149,40 @@ class AppearanceCue:
     support: tuple[float, float] = (float("nan"), float("nan"))  # (visible, IR) PSR of each channel at the peak
 
 
-def _grid(center: tuple[float, float], radius: float, step: float, W: int, H: int) -> list[tuple[float, float]]:
-    """Centres on a square grid of ``step`` within ``radius`` of ``center``, inside the frame."""
-    n = int(radius // step)
-    out = []
-    for iy in range(-n, n + 1):
-        for ix in range(-n, n + 1):
-            x, y = center[0] + ix * step, center[1] + iy * step
-            if (ix or iy) and 0 <= x < W and 0 <= y < H and math.hypot(ix, iy) * step <= radius + 1e-9:
-                out.append((x, y))
-    return out
+def region_candidates(center: tuple[float, float], radius: float, size: tuple[float, float], W: int, H: int,
+                      limit: int, turn: int) -> list[tuple[float, float]]:
+    """Up to ``limit`` centres on a grid of one target size (per axis) within ``radius`` of ``center``, inside the
+    frame: the nearest first; a larger grid is covered over successive calls (``turn``)."""
+    sx, sy = max(size[0], 4.0), max(size[1], 4.0)
+    nx, ny = int(radius // sx), int(radius // sy)
+    pts = [(center[0] + ix * sx, center[1] + iy * sy) for iy in range(-ny, ny + 1) for ix in range(-nx, nx + 1)
+           if (ix or iy) and math.hypot(ix * sx, iy * sy) <= radius + 1e-9]
+    pts = [p for p in pts if 0 <= p[0] < W and 0 <= p[1] < H]
+    pts.sort(key=lambda p: math.hypot(p[0] - center[0], p[1] - center[1]))
+    if len(pts) <= limit:
+        return pts
+    k = turn % -(-len(pts) // limit)
+    return pts[k * limit:(k + 1) * limit]
+
+
+def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: object, limit: int) -> list[tuple[float, float]]:
+    """Centres of the STDM regions of the IR frame (the visible one without IR) about the target's size (a
+    quarter to four times its area), the closest in size first: where a lost target may be anywhere."""
+    img = frames.infrared if frames.infrared is not None else frames.visible
+    assert img is not None
+    found = detection.detect(img, cfg.detection).regions  # type: ignore[attr-defined]
+    area = max(size[0] * size[1], 1.0)
+    near = [r for r in found if 0.25 <= r.box.area / area <= 4.0]
+    near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
+    return [r.box.center for r in near[:limit]]
 
 
 def appearance_cue(frames: FramePair, cs: ColourStep, cfg: object, mode: str, timing: dict[str, float],
                    frame_index: int) -> AppearanceCue | None:
-    """Detect the target with its filter at its prediction; a missing target is also looked for at the colour
-    cue's position and, every ``redetect_every_frames``, over a region widening with the missing frames (the
-    whole frame after ``redetect_global_after_frames``). None without a filter."""
+    """Detect the target with its filter at its prediction (and at the colour cue's position when that is
+    elsewhere); a missing target is also looked for, every ``redetect_every_frames``, over a region widening
+    with the missing frames and, after ``redetect_global_after_frames``, at the STDM regions of the whole
+    frame, at most ``redetect_candidates`` places a frame. None without a filter."""
     dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
     acfg: app.AppearanceConfig = cfg.appearance  # type: ignore[attr-defined]
     t = cs.t
@@ -174,14 +191,15 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: object, mode: str, ti
     clock = time.perf_counter()
     vis, ir = filter_images(frames, mode)
     size = t.app_size
-    best = app.detect(t.appearance, vis, ir, cs.y0, acfg, size=size)
+    with_scale = frame_index % acfg.scale_every_frames == 0
+    best = app.detect(t.appearance, vis, ir, cs.y0, acfg, size=size, with_scale=with_scale)
     redetected = False
     missing = t.missing > 0
     if (cs.informative and cs.rho1 >= dcfg.colour_min_rho and best.psr < dcfg.psr_reacquire
             and (abs(cs.y1[0] - cs.y0[0]) > dcfg.agree_fraction * size[0]
                  or abs(cs.y1[1] - cs.y0[1]) > dcfg.agree_fraction * size[1])):
         # the colour found the target away from its prediction (a turn): the filter looks there too
-        d = app.detect(t.appearance, vis, ir, cs.y1, acfg, size=size)
+        d = app.detect(t.appearance, vis, ir, cs.y1, acfg, size=size, with_scale=with_scale)
         if d.psr > best.psr:
             best = d
     if missing and dcfg.redetect and best.psr < dcfg.psr_reacquire:
@@ -190,12 +208,12 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: object, mode: str, ti
         if cs.informative and not math.isnan(cs.rho1):
             cands.append(cs.y1)
         if t.missing % dcfg.redetect_every_frames == 0:
-            step = 0.9 * max(min(size), 4.0) * (1 + acfg.padding) / 2
+            turn = t.missing // dcfg.redetect_every_frames
             if t.missing >= dcfg.redetect_global_after_frames:
-                cands += _grid((W / 2, H / 2), math.hypot(W, H) / 2, step, W, H)
+                cands += frame_candidates(frames, size, cfg, dcfg.redetect_candidates)
             else:
                 radius = 0.5 * math.hypot(*size) + dcfg.redetect_radius_px_per_frame * t.missing
-                cands += _grid(cs.y0, radius, step, W, H)
+                cands += region_candidates(cs.y0, radius, size, W, H, dcfg.redetect_candidates, turn)
         for c in cands:
             d = app.detect(t.appearance, vis, ir, c, acfg, size=size, with_scale=False)
             if d.psr > best.psr:

@@ -9,6 +9,7 @@ import time
 import numpy as np
 
 from pipeline.io.sequence import FramePair
+from pipeline.stages import appearance as app
 from pipeline.stages.contour import ContourResult, extract_contour
 from pipeline.trackers.dual.config import DualConfig
 from pipeline.trackers.dual.cues import ColourStep, add_time, appearance_cue, filter_images, match_at
@@ -22,6 +23,19 @@ CONFIDENCE = {TargetStatus.TRACKING: 1.0, TargetStatus.OCCLUDED_PARTIAL: 0.6, Ta
 def outside(box: BBox, shape: tuple[int, ...]) -> bool:
     """Less than a quarter of the box lies inside the frame."""
     return box.clip(shape[1], shape[0]).area < 0.25 * box.area
+
+
+def walked_in_size(size: tuple[float, float], c: ContourResult | None, rho_c: float, entering: tuple[bool, bool],
+                   dcfg: DualConfig) -> tuple[float, float] | None:
+    """The size of a target first given cut by the frame's border, once it has walked in: its first clean
+    contour (no longer at the border, its colour not contradicting it) is larger than the given box by more
+    than ``scale_agree_ratio`` along a cut axis. None otherwise (also when the target was not cut after all)."""
+    if c is None or c.box is None or not c.ok or (not math.isnan(rho_c) and rho_c < dcfg.colour_min_rho):
+        return None
+    grown = [entering[k] and (c.box.w, c.box.h)[k] > dcfg.scale_agree_ratio * size[k] for k in (0, 1)]
+    if not any(grown):
+        return None
+    return (c.box.w if grown[0] else size[0], c.box.h if grown[1] else size[1])
 
 
 def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
@@ -80,6 +94,13 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
 
     # size, output box, models
     size, app_size = fused_size(t.size, t.app_size, decision, c, cue, dcfg, cfg.contour.min_contrast)  # type: ignore[attr-defined]
+    entering = t.entering
+    walked_in = walked_in_size(size, c, rho_c, entering, dcfg) if any(entering) else None
+    if walked_in is not None:  # its first clean contour shows what the frame's border hid
+        size, decision = walked_in, Decision(Case.CONTOUR, c.box, 1.0, TargetStatus.TRACKING, "walked-in",  # type: ignore[union-attr]
+                                             False, False, "levelset")
+    if any(entering) and c is not None and c.ok:
+        entering = (False, False)
     if decision.measured:
         assert decision.box is not None
         out = BBox.from_center(decision.box.cx, decision.box.cy, size[0], size[1])
@@ -89,8 +110,14 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
         missing_n = t.missing + 1
     q, colour_decision, rho2 = update_colour_model(t.q, cs.bins, cs.roi0, out, decision.learn, decision.measured, cfg)
     vis, irf = filter_images(frames, mode)
-    model = update_appearance(t.appearance, vis, irf, BBox.from_center(out.cx, out.cy, *app_size), decision,
-                              colour_decision, cs.informative, cfg.appearance)  # type: ignore[attr-defined]
+    model = t.appearance
+    if walked_in is not None:  # the filter learns the whole target afresh
+        app_size = size
+        if model is not None:
+            model = app.train(vis, irf, out, cfg.appearance)  # type: ignore[attr-defined]
+    else:
+        model = update_appearance(model, vis, irf, BBox.from_center(out.cx, out.cy, *app_size), decision,
+                                  colour_decision, cs.informative, cfg.appearance, frames.index)  # type: ignore[attr-defined]
     events: list[Event] = list(events_in or [])
     if not colour_decision.update and t.last_update.startswith("updated") and colour_decision.reason != "colour-uninformative":
         events.append(Event(EventKind.MODEL_FROZEN, f"T{t.id} model frozen ({colour_decision.reason})", (t.id,)))
@@ -112,7 +139,7 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
 
     good_contour = decision.case == Case.CONTOUR and c is not None and c.box is not None
     nt = dataclasses.replace(
-        t, box=out, size=size, app_size=app_size, q=q, status=status, kf=kf,
+        t, box=out, size=size, app_size=app_size, entering=entering, q=q, status=status, kf=kf,
         memory=c.memory if good_contour and c is not None else t.memory,
         memory_center=c.box.center if good_contour and c is not None and c.box is not None else t.memory_center,
         history=history, missing=missing_n, last_update=str(colour_decision),

@@ -21,7 +21,9 @@ class DualTarget:
     intensity) histogram of the mean-shift cue; ``appearance`` the correlation filter;
     ``app_size`` the size the filter's own scale estimate follows (no contour enters it, so a
     leaking or partial contour is measured against it); ``memory`` the last good level set and
-    ``memory_center`` the target centre it was made at;
+    ``memory_center`` the target centre it was made at; ``entering`` the axes along which the
+    first box was cut by the frame's border (the target walks in, and its size on that axis is
+    what its clean contour says once it is inside);
     ``history`` the recent clean measurements ``(frame, cx, cy, w, h)``.
     """
 
@@ -39,6 +41,7 @@ class DualTarget:
     split_frame: int = -1_000_000  # frame of the last split from a merge (re-merge hysteresis)
     appearance: AppearanceModel | None = None
     app_size: tuple[float, float] = (0.0, 0.0)  # the filter's own size estimate (its scale filter's track)
+    entering: tuple[bool, bool] = (False, False)  # given cut by the frame's border along x / y: walking in
     case: str = "init"
 
     @property

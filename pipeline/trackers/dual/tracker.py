@@ -34,15 +34,20 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple
     bins, m = appearance_bins(colour_image(frames, mode), cfg.histogram)  # type: ignore[attr-defined]
     vis, ir = filter_images(frames, mode)
     states, results = [], []
+    H, W = frames.shape
     for t in targets:
+        b = t.box
         q = kernel_histogram(bins, t.box, m)
         kf = kalman.init_state(t.box, cfg.kalman)  # type: ignore[attr-defined]
         c = extract_contour(ir, t.box, cfg.contour, cfg.levelset) if ir is not None else None  # type: ignore[attr-defined]
+        # walking in: the given box and the target's IR blob are both cut by the frame's border
+        cut = c.at_border if c is not None and c.box is not None else (False, False)
+        entering = (cut[0] and (b.x <= 1.0 or b.x2 >= W - 1.0), cut[1] and (b.y <= 1.0 or b.y2 >= H - 1.0))
         model = app.train(vis, ir, t.box, cfg.appearance) if dcfg.appearance_cue else None  # type: ignore[attr-defined]
         states.append(DualTarget(t.id, t.box, (t.box.w, t.box.h), q, TargetStatus.TRACKING, kf,
                                  c.memory if c is not None and c.box is not None else None, t.box.center,
                                  ((1.0, t.box.cx, t.box.cy, t.box.w, t.box.h),), appearance=model,
-                                 app_size=(t.box.w, t.box.h)))
+                                 app_size=(t.box.w, t.box.h), entering=entering))
         results.append(TargetResult(t.id, t.box, TargetStatus.TRACKING, "init",
                                     {"levelset": c.iterations if c is not None else 0}, 1.0, "none:init", 1.0,
                                     c.contour if c is not None else (), decision="init:given"))

@@ -66,14 +66,18 @@ def update_colour_model(q: np.ndarray, bins: np.ndarray | None, roi0: tuple[int,
 
 
 def update_appearance(model: app.AppearanceModel | None, frames_vis, frames_ir, box: BBox, decision: Decision,
-                      colour: UpdateDecision, informative: bool, acfg: app.AppearanceConfig) -> app.AppearanceModel | None:
+                      colour: UpdateDecision, informative: bool, acfg: app.AppearanceConfig,
+                      frame: int) -> app.AppearanceModel | None:
     """The filter blended with this frame when the decision lets the models learn and the colour's selective update
-    did not freeze for a change of appearance (eq. 8-9 gates the filter's learning rate)."""
-    if model is None or not decision.measured or not decision.learn:
+    did not freeze for a change of appearance (eq. 8-9 gates the filter's learning rate); on every
+    ``update_every_frames``-th frame only, at the rate compounded over them."""
+    if model is None or not decision.measured or not decision.learn or frame % acfg.update_every_frames:
         return model
     if informative and not colour.update and colour.reason in ("rho-low", "occluded"):
         return model
-    return app.update(model, frames_vis, frames_ir, box, acfg)
+    k = acfg.update_every_frames
+    return app.update(model, frames_vis, frames_ir, box, acfg, rate=1 - (1 - acfg.learning_rate) ** k,
+                      scale_rate=1 - (1 - acfg.scale_learning_rate) ** k)
 
 
 def motion_update(cs: ColourStep, decision: Decision, out: BBox, frame: int, dcfg: DualConfig, kcfg,
