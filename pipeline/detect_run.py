@@ -113,10 +113,13 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
     per_frame: list[int] = []
     det_s = [0.0]
 
+    background = [None]
+
     def step(fp: FramePair) -> DetectItem:
         img = getattr(fp, ch)
         t0 = time.perf_counter()
-        d = detect(to_grey(img), cfg.detection)
+        d = detect(to_grey(img), cfg.detection, background[0], fp.visible if ch == "infrared" else None)
+        background[0] = d.background
         dt = time.perf_counter() - t0
         det_s[0] += dt
         per_frame.append(len(d.regions))

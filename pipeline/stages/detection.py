@@ -41,6 +41,35 @@ class DetectionConfig:
     ----------
     channel : str
         Frame the detector runs on, ``infrared`` (default) or ``visible`` (converted to grey).
+    method : str
+        ``foreground`` (default): the regions are the pixels warmer than a background estimate
+        (:func:`foreground`), so that the edges a real scene has of its own (a road band, a
+        skyline, a tree shadow) are not regions; ``stdm``: the paper's, the regions of the
+        thresholded STDM alone.
+    background_fraction : float
+        The first frame's background is its median over a window of this share of the
+        frame's shorter side, in (0, 1]; default 0.5 (larger than any target, so a target is
+        not its own background).
+    background_step : float
+        Afterwards the background moves towards each frame by at most this many grey levels
+        (an approximate running median; eight times as fast on the second frame, falling
+        with the square root of the frames seen to this from the 64th; a quarter of it
+        under the regions kept, so that a target that stops is absorbed only slowly), > 0;
+        default 1.
+    foreground_k : float
+        A pixel is foreground when it is warmer than the background (its largest value
+        within ``jitter_px``) by this many robust deviations of the frame's difference from
+        the background, >= 0; default 4 ...
+    foreground_min_contrast : float
+        ... and by at least this many grey levels, >= 0; default 5.
+    jitter_px : int
+        Camera shake tolerated, px, in [0, 5]; default 1 (an edge that moves by this much is
+        not foreground).
+    fuse_visible : bool
+        With ``foreground`` on the IR frame and a registered visible frame, its pixels that
+        differ from the visible background (:func:`visible_foreground`) are foreground too;
+        default False: the visible background starts as the first frame, so every target
+        leaves a ghost where it stood, and shadows moving with the sun's direction fire.
     window_px : int
         Side of the STDM window, odd, in [3, 31]; default 7 (about 1/4 to 1/2 of a target's
         width: high on the target's boundary).
@@ -66,15 +95,15 @@ class DetectionConfig:
         Size of the closing ellipse (bridges the ring the STDM draws around a target's
         boundary before the holes are filled), px, >= 1; default 7.
     min_area_px : int
-        Components smaller than this (px) are dropped before discrimination, >= 1; default 60.
+        Components smaller than this (px) are dropped before discrimination, >= 1; default 40.
     perimeter_px : tuple[float, float]
-        Accepted range of the boundary length P (px); default (90, 600): people and
-        vehicles 40 to 200 px tall (smaller targets need a smaller minimum).
+        Accepted range of the boundary length P (px); default (40, 900): people and vehicles
+        about 15 to 300 px tall.
     max_aspect : float
         Largest accepted aspect ratio of the minimum-area rectangle, >= 1; default 5.
     max_complexity : float
-        Largest accepted C2 = P^2 / (4 pi A), >= 1; default 3 (a person's filled silhouette
-        measures 1.4-1.8, the rings of unfilled clutter 4-10).
+        Largest accepted C2 = P^2 / (4 pi A), >= 1; default 5 (a person's filled silhouette
+        measures 1.4-1.8, a cyclist's 3-4.5, the rings of unfilled STDM clutter 4-10).
     split_core_fraction : float
         Beyond the paper: a region whose distance transform has two or more cores above this
         fraction of its maximum (two torsos joined at a narrower neck) is split, every pixel
@@ -89,6 +118,13 @@ class DetectionConfig:
     """
 
     channel: str = "infrared"
+    method: str = "foreground"
+    background_fraction: float = 0.5
+    background_step: float = 1.0
+    foreground_k: float = 4.0
+    foreground_min_contrast: float = 5.0
+    jitter_px: int = 1
+    fuse_visible: bool = False
     window_px: int = 7
     threshold: str = "global"
     threshold_window_px: int = 61
@@ -96,10 +132,10 @@ class DetectionConfig:
     min_std: float = 4.0
     open_px: int = 3
     close_px: int = 7
-    min_area_px: int = 60
-    perimeter_px: tuple[float, float] = (90.0, 600.0)
+    min_area_px: int = 40
+    perimeter_px: tuple[float, float] = (40.0, 900.0)
     max_aspect: float = 5.0
-    max_complexity: float = 3.0
+    max_complexity: float = 5.0
     split_core_fraction: float = 0.7
     split_min_core_px: int = 10
 
@@ -108,6 +144,17 @@ class DetectionConfig:
             raise ValueError(f"detection.threshold must be global or local; got {self.threshold!r}")
         if self.channel not in ("infrared", "visible"):
             raise ValueError(f"detection.channel must be infrared or visible; got {self.channel!r}")
+        if self.method not in ("foreground", "stdm"):
+            raise ValueError(f"detection.method must be foreground or stdm; got {self.method!r}")
+        if not 0 < self.background_fraction <= 1:
+            raise ValueError(f"detection.background_fraction must be in (0, 1]; got {self.background_fraction!r}")
+        if not self.background_step > 0:
+            raise ValueError(f"detection.background_step must be > 0; got {self.background_step!r}")
+        for name in ("foreground_k", "foreground_min_contrast"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"detection.{name} must be >= 0; got {getattr(self, name)!r}")
+        if not (isinstance(self.jitter_px, int) and 0 <= self.jitter_px <= 5):
+            raise ValueError(f"detection.jitter_px must be an integer in [0, 5]; got {self.jitter_px!r}")
         for name, lo, hi in (("window_px", 3, 31), ("threshold_window_px", 9, 255)):
             v = getattr(self, name)
             if not (isinstance(v, int) and lo <= v <= hi and v % 2 == 1):
@@ -154,6 +201,85 @@ class Detections:
     rejected: tuple[Region, ...]
     std_map: np.ndarray = field(repr=False)
     mask: np.ndarray = field(repr=False)
+    background: Background | None = field(default=None, repr=False)  # for the next frame (``foreground``)
+
+
+@dataclass(frozen=True)
+class Background:
+    """A background estimate of a still camera's frames (float32, grey levels) and how many frames it has seen."""
+
+    estimate: np.ndarray = field(repr=False)
+    frames: int = 0  # frames it has learned from
+    visible: np.ndarray | None = field(default=None, repr=False)  # (H, W, 3) float32 CIELAB, when fused
+
+
+def bootstrap_background(grey: np.ndarray, cfg: DetectionConfig) -> Background:
+    """The first frame's background: its median over a window of ``background_fraction`` of the shorter side
+    (computed at a quarter of the resolution, then interpolated back)."""
+    from scipy.ndimage import median_filter
+
+    H, W = grey.shape
+    f = 4 if min(H, W) >= 64 else 1
+    small = cv2.resize(grey.astype(np.float32), (max(W // f, 1), max(H // f, 1)), interpolation=cv2.INTER_AREA)
+    k = max(3, int(round(cfg.background_fraction * min(H, W) / f)) | 1)
+    med = median_filter(small, size=k, mode="nearest")
+    return Background(cv2.resize(med, (W, H), interpolation=cv2.INTER_LINEAR), 0)
+
+
+def foreground(grey: np.ndarray, bg: Background, cfg: DetectionConfig) -> np.ndarray:
+    """Pixels warmer than the background (uint8 0/1): by ``foreground_k`` robust deviations of the frame's
+    difference from it and by ``foreground_min_contrast``, against the background's largest value within
+    ``jitter_px`` (a shaking edge is not foreground)."""
+    g = grey.astype(np.float32)
+    diff = g - bg.estimate
+    step = max(1, int(np.sqrt(diff.size / 4096)))
+    sub = diff[::step, ::step].ravel()
+    med = float(np.median(sub))
+    mad = 1.4826 * float(np.median(np.abs(sub - med)))
+    thr = max(cfg.foreground_min_contrast, med + cfg.foreground_k * mad)
+    ref = bg.estimate
+    if cfg.jitter_px > 0:
+        k = 2 * cfg.jitter_px + 1
+        ref = cv2.dilate(ref, np.ones((k, k), np.uint8))
+    return ((g - ref) > thr).astype(np.uint8)
+
+
+def _toward(est: np.ndarray, x: np.ndarray, fg: np.ndarray, step: float) -> np.ndarray:
+    s = np.where(fg > 0, np.float32(0.25 * step), np.float32(step))
+    if est.ndim == 3:
+        s = s[..., None]
+    return est + np.clip(x - est, -s, s)
+
+
+def update_background(bg: Background, grey: np.ndarray, fg: np.ndarray, cfg: DetectionConfig,
+                      lab: np.ndarray | None = None) -> Background:
+    """The background moved towards ``grey`` (and the visible one towards ``lab``) by at most
+    ``background_step`` (a quarter of it under ``fg``, the regions kept as targets): an approximate
+    running median."""
+    step = cfg.background_step * max(1.0, 8.0 / math.sqrt(max(bg.frames, 1)))  # fast at first: the bootstrap is rough
+    vis = None
+    if lab is not None:
+        vis = lab.copy() if bg.visible is None else _toward(bg.visible, lab, fg, step)
+    return Background(_toward(bg.estimate, grey.astype(np.float32), fg, step), bg.frames + 1, vis)
+
+
+def visible_foreground(lab: np.ndarray, bg: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
+    """Pixels of the visible frame (CIELAB, float32) that differ from its background (uint8 0/1): in colour
+    (a*, b*) or brighter, by ``foreground_k`` robust deviations and ``foreground_min_contrast``, after the
+    frame's overall brightness change (an illumination ramp, flicker) is taken out; a pixel only darker
+    than the background in the same colour is a shadow, not foreground."""
+    L, Lb = lab[..., 0], bg[..., 0]
+    step = max(1, int(np.sqrt(L.size / 4096)))
+    gain = float(np.median(L[::step, ::step] / np.maximum(Lb[::step, ::step], 1.0)))
+    dL = L - gain * Lb
+    dc = np.sqrt((lab[..., 1] - bg[..., 1]) ** 2 + (lab[..., 2] - bg[..., 2]) ** 2)
+
+    def thr(d: np.ndarray) -> float:
+        sub = d[::step, ::step].ravel()
+        med = float(np.median(sub))
+        return max(cfg.foreground_min_contrast, med + cfg.foreground_k * 1.4826 * float(np.median(np.abs(sub - med))))
+
+    return ((dc > thr(dc)) | (dL > thr(np.abs(dL)))).astype(np.uint8)
 
 
 def to_grey(frame: np.ndarray) -> np.ndarray:
@@ -316,13 +442,39 @@ def discriminate(found: list[Region], cfg: DetectionConfig) -> tuple[list[Region
     return ok, bad
 
 
-def detect(frame: np.ndarray, cfg: DetectionConfig) -> Detections:
-    """STDM, segmentation, clean-up, regions and discrimination on one frame."""
-    s = stdm(frame, cfg.window_px)
-    mask, contours = _clean_contours(segment(s, cfg), cfg)
+def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | None = None,
+           visible: np.ndarray | None = None) -> Detections:
+    """Segmentation (``cfg.method``), clean-up, splitting, regions and discrimination on one frame.
+
+    With ``foreground``, ``background`` is the previous frame's :attr:`Detections.background` (None on
+    the first frame, or for a frame on its own: bootstrapped from this one); ``visible``, the registered
+    visible frame (BGR) of an IR ``frame``, adds its own foreground (``fuse_visible``)."""
+    if cfg.method == "stdm":
+        s = stdm(frame, cfg.window_px)
+        mask, contours = _clean_contours(segment(s, cfg), cfg)
+        contours = split_touching(contours, cfg.split_core_fraction, cfg.split_min_core_px)
+        ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
+        return Detections(tuple(_unpad(r, cfg.window_px) for r in ok), tuple(bad), s, mask)
+    grey = to_grey(frame)
+    bg = background if background is not None and background.estimate.shape == grey.shape else \
+        bootstrap_background(grey, cfg)
+    fg = foreground(grey, bg, cfg)
+    lab = None
+    if cfg.fuse_visible and visible is not None and visible.ndim == 3 and visible.shape[:2] == grey.shape:
+        lab = cv2.cvtColor(visible, cv2.COLOR_BGR2LAB).astype(np.float32)
+        if bg.visible is not None:
+            fg |= visible_foreground(lab, bg.visible, cfg)
+    mask, contours = _clean_contours(fg, cfg)
     contours = split_touching(contours, cfg.split_core_fraction, cfg.split_min_core_px)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
-    return Detections(tuple(_unpad(r, cfg.window_px) for r in ok), tuple(bad), s, mask)
+    # the background learns slowly only under what looks like a target (a region kept): a band or an edge the
+    # first frame's estimate got wrong is absorbed at the full rate
+    held = np.zeros_like(mask)
+    if ok:
+        cv2.drawContours(held, [np.round(r.contour - 0.5).astype(np.int32).reshape(-1, 1, 2) for r in ok], -1, 1,
+                         thickness=cv2.FILLED)
+    return Detections(tuple(ok), tuple(bad), np.zeros((1, 1), np.float32), mask,
+                      update_background(bg, grey, held, cfg, lab))
 
 
 def _unpad(r: Region, window_px: int) -> Region:

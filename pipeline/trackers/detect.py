@@ -36,7 +36,7 @@ import numpy as np
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
 from pipeline.stages.association import get_associator, state_log_likelihoods
-from pipeline.stages.detection import DetectionConfig, Region, detect, to_grey
+from pipeline.stages.detection import Background, DetectionConfig, Region, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
 
@@ -61,6 +61,7 @@ class DetectState:
     tracks: tuple[DetTrack, ...]
     next_id: int
     channel: str
+    background: Background | None = None  # the detector's background estimate (``detection.method = foreground``)
 
 
 def _kcfg(cfg: object) -> kalman.KalmanConfig:
@@ -138,7 +139,8 @@ def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectStat
     image = getattr(frames, state.channel)
     grey = to_grey(image)
     H, W = grey.shape
-    found = detect(grey, _detection_cfg(cfg.detection, a.split_touching))  # type: ignore[attr-defined]
+    found = detect(grey, _detection_cfg(cfg.detection, a.split_touching), state.background,  # type: ignore[attr-defined]
+                   frames.visible if state.channel == "infrared" else None)
     regions = list(found.regions)
     t1 = time.perf_counter()
     timing["detection"] = t1 - t0
@@ -240,7 +242,7 @@ def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectStat
         next_id += 1
     timing["detect_tracker"] = time.perf_counter() - t0
     res = FrameResult(frames.index, tuple(sorted(results, key=lambda r: r.id)), tuple(events), timing)
-    return DetectState(tuple(tracks), next_id, state.channel), res
+    return DetectState(tuple(tracks), next_id, state.channel, found.background), res
 
 
 def _contains(box: BBox, c: np.ndarray) -> bool:

@@ -27,6 +27,7 @@ def test_flat_frame_has_zero_deviation_and_no_detection():
     flat = np.full((60, 80), 120, np.uint8)
     assert stdm(flat, 7).max() == 0
     assert detect(flat, DetectionConfig()).regions == ()
+    assert detect(flat, DetectionConfig(method="stdm")).regions == ()
 
 
 def shapes() -> np.ndarray:
@@ -79,12 +80,57 @@ def test_detects_warm_targets_on_a_textured_background():
     for x, y, w, h in truths:
         img[y:y + h, x:x + w] += 70
     img = cv2.GaussianBlur(np.clip(img, 0, 255), (0, 0), 1.0).astype(np.uint8)
-    d = detect(img, DetectionConfig())
-    assert len(d.regions) == 2
-    for (x, y, w, h), r in zip(truths, sorted(d.regions, key=lambda r: r.box.x), strict=True):
-        assert r.centroid == pytest.approx((x + w / 2, y + h / 2), abs=2.0)
-        assert abs(r.box.w - w) <= 6 and abs(r.box.h - h) <= 6
-    assert segment(d.std_map, DetectionConfig()).sum() > 0
+    for method in ("stdm", "foreground"):
+        cfg = DetectionConfig(method=method, perimeter_px=(90.0, 600.0))
+        d = detect(img, cfg)
+        assert len(d.regions) == 2, method
+        for (x, y, w, h), r in zip(truths, sorted(d.regions, key=lambda r: r.box.x), strict=True):
+            assert r.centroid == pytest.approx((x + w / 2, y + h / 2), abs=2.0)
+            assert abs(r.box.w - w) <= 6 and abs(r.box.h - h) <= 6
+    assert segment(detect(img, DetectionConfig(method="stdm")).std_map, DetectionConfig()).sum() > 0
+
+
+def road_scene(rng: np.random.Generator, person_x: float) -> np.ndarray:
+    """A grey IR ground with a warmer road band (rows 100-140) and a cold building block: edges of the scene's
+    own; a warm person (22 x 56 px, +45 grey levels) standing on the band's upper edge at ``person_x``."""
+    img = cv2.GaussianBlur(rng.normal(90, 10, (240, 320)), (0, 0), 4) + rng.normal(0, 2, (240, 320))
+    img[100:140] += 25
+    img[0:50, 60:200] -= 40
+    x, y = int(person_x), 70
+    img[y:y + 56, x:x + 22] += 45
+    return np.clip(cv2.GaussianBlur(img, (0, 0), 1.0), 0, 255).astype(np.uint8)
+
+
+def test_a_person_on_the_edge_of_a_road_band_is_one_region_and_the_band_is_none():
+    """The STDM of the seed joins the person to the band's edges (a too-large or elongated region, dropped);
+    the foreground against the background keeps the person and not the scene's own edges."""
+    rng = np.random.default_rng(3)
+    frames = [road_scene(rng, 60 + 2 * k) for k in range(30)]
+    stdm_found = detect(frames[-1], DetectionConfig(method="stdm"))
+    assert not any(abs(r.centroid[0] - 129) < 6 and abs(r.centroid[1] - 98) < 6 for r in stdm_found.regions)
+    bg = None
+    for f in frames:
+        d = detect(f, DetectionConfig(), bg)
+        bg = d.background
+    assert len(d.regions) == 1, [(r.box, r.reason) for r in (*d.regions, *d.rejected)]
+    r = d.regions[0]
+    assert r.centroid == pytest.approx((60 + 2 * 29 + 11, 70 + 28), abs=2.0)
+    assert abs(r.box.w - 22) <= 4 and abs(r.box.h - 56) <= 4
+
+
+def test_a_still_camera_background_absorbs_static_structure_and_not_a_moving_target():
+    rng = np.random.default_rng(4)
+    static = cv2.GaussianBlur(rng.normal(90, 10, (120, 160)), (0, 0), 4)
+    static[30:60, 20:40] += 40  # a warm parked object, there from the first frame
+    bg = None
+    for k in range(80):
+        img = static + rng.normal(0, 2, static.shape)
+        img[60:90, 60 + k // 2:75 + k // 2] += 40  # a person walking slowly
+        d = detect(np.clip(img, 0, 255).astype(np.uint8), DetectionConfig(perimeter_px=(30.0, 400.0)), bg)
+        bg = d.background
+    centres = [r.centroid for r in d.regions]
+    assert len(centres) == 1 and centres[0][0] == pytest.approx(60 + 79 // 2 + 7.5, abs=2.0)
+    assert bg.frames == 80 and abs(float(bg.estimate[45, 30]) - float(static[45, 30])) < 8
 
 
 def test_touching_bodies_are_split_and_one_body_is_not():
