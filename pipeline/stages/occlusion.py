@@ -3,7 +3,8 @@
 * Bhattacharyya distance ``d = sqrt(1 - rho)`` below ``Tb`` (0.4), and a CamShift size
   that has not changed a lot: not occluded (the paper's experiment (a): "if the target
   size CamShift computes changes a lot, or d >= Tb, occlusion has occurred"; a change is
-  "a lot" when the area exceeds ``max_area_growth`` times the predicted area).
+  "a lot" when the area exceeds ``max_area_growth`` times the predicted area;
+  ``size_change_occludes`` turns the size test off).
 * otherwise occluded; the CamShift area decides how badly: ``area >= min_area``
   partial, ``area < min_area`` severe, where ``min_area`` is 40 % of the smallest area
   measured in the first 20 unoccluded frames.
@@ -60,6 +61,15 @@ class OcclusionConfig:
         Clean measurements kept for that restart (a least-squares line through them
         gives the coasting velocity), in [2, 100]; default 16. Increasing it steadies
         the velocity and makes it slower to reflect turns.
+    size_change_occludes : bool
+        A CamShift area grown past ``max_area_growth`` is an occlusion whatever the colour
+        match (the paper; default True: an occluder of the target's own colour makes
+        CamShift spread with a strong match). False measures such a target's position at its
+        last size instead.
+    max_missing_frames : int
+        Beyond the paper: frames in a row without a measurement (partial or severe) after
+        which the target is lost, >= 1; default 100. A prediction that leaves the frame is
+        lost at once.
     """
 
     distance_threshold: float = 0.4
@@ -72,6 +82,8 @@ class OcclusionConfig:
     reacquire_distance: float = 0.3
     rewind_frames: int = 8
     history_frames: int = 16
+    size_change_occludes: bool = True
+    max_missing_frames: int = 100
 
     def __post_init__(self) -> None:
         if not 0 < self.distance_threshold <= 1:
@@ -92,6 +104,8 @@ class OcclusionConfig:
             raise ValueError(f"occlusion.reacquire_distance must be in (0, distance_threshold]; got {self.reacquire_distance!r}")
         if not (isinstance(self.history_frames, int) and 2 <= self.history_frames <= 100):
             raise ValueError(f"occlusion.history_frames must be an integer in [2, 100]; got {self.history_frames!r}")
+        if not (isinstance(self.max_missing_frames, int) and self.max_missing_frames >= 1):
+            raise ValueError(f"occlusion.max_missing_frames must be an integer >= 1; got {self.max_missing_frames!r}")
         if not (isinstance(self.rewind_frames, int) and 0 <= self.rewind_frames <= 30):
             raise ValueError(f"occlusion.rewind_frames must be an integer in [0, 30]; got {self.rewind_frames!r}")
 
@@ -107,7 +121,7 @@ def grade_occlusion(d: float, area_px2: float, min_area_px2: float | None, cfg: 
     """The paper's grading of one frame (``min_area_px2`` None: no reference yet, never severe by area;
     ``predicted_area_px2`` None: no size-change test)."""
     grown = predicted_area_px2 is not None and area_px2 > cfg.max_area_growth * predicted_area_px2
-    if d < cfg.distance_threshold and not grown:
+    if d < cfg.distance_threshold and not (grown and cfg.size_change_occludes):
         return Grade.NONE
     if min_area_px2 is not None and area_px2 < min_area_px2:
         return Grade.SEVERE

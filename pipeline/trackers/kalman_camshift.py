@@ -41,7 +41,11 @@ Beyond the paper (each measured in the closing note of the issue):
   ``pipeline.stages.motion``), discarding those dragged measurements and the
   measurement jitter the filter's velocity carries;
 * a missing target is taken back only when d < ``occlusion.reacquire_distance`` (0.3),
-  a hysteresis below Tb.
+  a hysteresis below Tb;
+* with ``occlusion.size_change_occludes`` off, a strong colour match is not an occlusion
+  even when the CamShift area grew: its position is measured, with the last size;
+* coasting is bounded: a prediction that leaves the frame, or ``occlusion.max_missing_frames``
+  frames without a measurement, end in ``lost``, where the motion stops.
 """
 
 from __future__ import annotations
@@ -56,7 +60,7 @@ import numpy as np
 
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
-from pipeline.stages.motion import coast_start, hold_rates
+from pipeline.stages.motion import coast_start, hold_rates, stop
 from pipeline.stages.camshift import back_project, box_mask, camshift, feature, histogram, kernel_masked_histogram, to_hsv
 from pipeline.stages.histogram import bhattacharyya, bhattacharyya_distance
 from pipeline.stages.occlusion import AreaReference, Grade, grade_occlusion, is_lost, next_severe_run
@@ -77,6 +81,7 @@ class KCTarget:
     reference: AreaReference
     severe_run: int = 0
     history: tuple[tuple[float, float, float, float, float], ...] = ()  # clean (frame, cx, cy, w, h), newest last
+    missing_run: int = 0  # frames in a row without a measurement
 
 
 @dataclass(frozen=True)
@@ -188,6 +193,11 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
     events: list[Event] = []
     reference = t.reference
     severe_run = next_severe_run(grade, t.severe_run)
+    grown = found is not None and area > ocfg.max_area_growth * (t.last_rect if missing else pbox).area
+    if grade == Grade.NONE and found is not None and grown:  # CamShift spread onto its colour around: no size
+        found = BBox.from_center(found.cx, found.cy, t.last_rect.w, t.last_rect.h)
+        source = "camshift-position"
+    outside = pbox.clip(w, h).area < 0.25 * pbox.area
     if grade == Grade.NONE and found is not None:
         kf = kalman.correct(prior, kalman.box_measurement(found), H, R, kcfg).state
         out, status, last_rect = found, TargetStatus.TRACKING, found
@@ -210,6 +220,14 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
         if is_lost(severe_run, ocfg):
             status, kf = TargetStatus.LOST, prior
             events.append(Event(EventKind.LOST, f"T{t.id} lost after {severe_run} severe frames", (t.id,)))
+    missing_run = 0 if status == TargetStatus.TRACKING else t.missing_run + 1
+    if status.is_occluded and (outside or missing_run > ocfg.max_missing_frames):
+        why = "its prediction left the frame" if outside else f"{missing_run} frames without a measurement"
+        status, kf, source = TargetStatus.LOST, stop(prior), "kalman"
+        out = BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
+        events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
+    elif status == TargetStatus.LOST and outside:
+        kf = stop(kf)  # a lost target does not coast on out of the frame
     history = t.history
     if status == TargetStatus.TRACKING and d < 0.5 * ocfg.distance_threshold and found is not None:
         history = (*t.history, (float(frame), found.cx, found.cy, found.w, found.h))[-ocfg.history_frames:]
@@ -233,7 +251,7 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
     if found is not None:
         overlays["camshift"] = found
     new_t = dataclasses.replace(t, kf=kf, status=status, last_rect=last_rect, reference=reference, severe_run=severe_run,
-                                history=history)
+                                history=history, missing_run=missing_run)
     res = TargetResult(t.id, out, status, source, {}, 1.0 - d * d, "frozen:paper-fixed-model", max(conf, 0.0), (),
                        diag, overlays)
     return new_t, res, events

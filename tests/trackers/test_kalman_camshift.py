@@ -64,3 +64,57 @@ def test_lost_then_reacquired_when_k0_is_small(scene):
     if "occluded-severe" in statuses:
         assert "lost" in kinds and "re-acquired" in kinds
         assert statuses[-1] == "tracking"
+
+
+def _frames_of_a_red_square_that_vanishes(n_seen: int, n: int, speed: float):
+    """BGR frames: a red square moving right at ``speed`` px/frame on grey, gone after frame ``n_seen``."""
+    from pipeline.io.sequence import FramePair
+
+    out = []
+    for k in range(n):
+        img = np.full((120, 160, 3), 128, np.uint8)
+        if k < n_seen:
+            x = int(40 + speed * k)
+            img[50:70, x:x + 20] = (30, 30, 220)
+        out.append(FramePair(k + 1, img, None))
+    return out
+
+
+def test_a_coasting_prediction_that_leaves_the_frame_ends_the_track():
+    from pipeline.config import load_config
+    from pipeline.trackers import kalman_camshift as kc
+    from pipeline.types import BBox, InitTarget, TargetStatus
+
+    cfg = load_config(None, [])
+    frames = _frames_of_a_red_square_that_vanishes(20, 80, 3.0)
+    state, _ = kc.init(frames[0], [InitTarget(1, BBox(40, 50, 20, 20))], cfg)
+    statuses, events = [], []
+    for fp in frames[1:]:
+        state, res = kc.step(state, fp, cfg)
+        statuses.append(res.targets[0].status)
+        events += [e.text for e in res.events]
+    assert statuses[10] == TargetStatus.TRACKING
+    assert TargetStatus.LOST in statuses  # the prediction went on to the right edge: lost, not occluded for ever
+    first_lost = statuses.index(TargetStatus.LOST)
+    assert all(s == TargetStatus.LOST for s in statuses[first_lost:])
+    assert any("left the frame" in e for e in events)
+    assert state.targets[0].kf.box.cx <= 160 + 20  # and its motion stopped at the edge
+
+
+def test_coasting_is_bounded_in_time():
+    from dataclasses import replace
+
+    from pipeline.config import load_config
+    from pipeline.trackers import kalman_camshift as kc
+    from pipeline.types import BBox, InitTarget, TargetStatus
+
+    cfg = load_config(None, [])
+    cfg = replace(cfg, occlusion=replace(cfg.occlusion, max_missing_frames=10, max_severe_frames=1000))
+    frames = _frames_of_a_red_square_that_vanishes(10, 40, 0.0)  # it stays where it was, hidden
+    state, _ = kc.init(frames[0], [InitTarget(1, BBox(40, 50, 20, 20))], cfg)
+    statuses = []
+    for fp in frames[1:]:
+        state, res = kc.step(state, fp, cfg)
+        statuses.append(res.targets[0].status)
+    assert statuses[8] == TargetStatus.TRACKING and statuses[-1] == TargetStatus.LOST
+    assert statuses.index(TargetStatus.LOST) == 9 + 10  # the 11th frame without a measurement
