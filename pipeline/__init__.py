@@ -1,38 +1,37 @@
 """dualtrack: tracking in registered infrared + visible video.
 
-Python API (design.md)::
+The Python API:
 
-    import pipeline
-    seq = pipeline.open_sequence("path/to/sequence")
-    results = pipeline.track(seq, tracker="dual", init=[(10, 20, 30, 40)])
-    metrics = pipeline.evaluate("path/to/sequence", "runs/seq/tracks.csv")
-    pipeline.synthesize("crossing2", "out/crossing2")
+* :class:`DualTracker` (and :class:`Tracker` for any engine by name) to drive from your own loop:
+  ``start(frames, boxes)``, then ``step(frames)``;
+* :func:`track` a sequence folder in memory, :func:`run_track` it into a run folder (CSV, .rrd, plots);
+* :func:`open_sequence` to read a folder of any supported layout, :func:`evaluate` a results file
+  against its truth, :func:`synthesize` a scene with exact ground truth;
+* :class:`PipelineConfig` (every stage's parameters) and :func:`load_config` (TOML and ``--set`` items).
+
+Examples
+--------
+>>> import pipeline
+>>> cfg = pipeline.load_config(None, ["dual.scale_rate=0.3"])
+>>> cfg.dual.scale_rate
+0.3
+>>> pipeline.BBox(10, 20, 30, 40).center
+(25.0, 40.0)
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 __version__ = "0.1.0"
 
-_LAZY = {
-    "open_sequence": ("pipeline.io.sequence", "open_sequence"),
-    "track": ("pipeline.run", "track"),
-    "run_track": ("pipeline.run", "run_track"),
-    "evaluate": ("pipeline.eval", "evaluate_files"),
-    "synthesize": ("pipeline.synthetic", "synthesize"),
-    "BBox": ("pipeline.types", "BBox"),
-    "PipelineConfig": ("pipeline.config", "PipelineConfig"),
-}
+# the modules below read __version__
+from pipeline.api import DetectTracker, DualTracker, KalmanCamShiftTracker, MeanShiftTracker, Tracker  # noqa: E402
+from pipeline.config import PipelineConfig, load_config  # noqa: E402
+from pipeline.eval import evaluate_files as evaluate  # noqa: E402
+from pipeline.io.sequence import FramePair, open_sequence  # noqa: E402
+from pipeline.run import RunOptions, run_track, track  # noqa: E402
+from pipeline.synthetic import synthesize, synthesize_random  # noqa: E402
+from pipeline.types import BBox, FrameResult, TargetResult, TargetStatus  # noqa: E402
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        import importlib
-
-        mod, attr = _LAZY[name]
-        return getattr(importlib.import_module(mod), attr)
-    raise AttributeError(f"module 'pipeline' has no attribute {name!r}")
-
-
-__all__ = ["BBox", "PipelineConfig", "__version__", "evaluate", "open_sequence", "run_track", "synthesize", "track"]
+__all__ = ["BBox", "DetectTracker", "DualTracker", "FramePair", "FrameResult", "KalmanCamShiftTracker",
+           "MeanShiftTracker", "PipelineConfig", "RunOptions", "TargetResult", "TargetStatus", "Tracker", "__version__",
+           "evaluate", "load_config", "open_sequence", "run_track", "synthesize", "synthesize_random", "track"]

@@ -55,18 +55,37 @@ def iter_track(seq: Sequence, engine: Engine, targets: list[InitTarget], stop: i
 def track(
     sequence: Sequence | str | Path,
     tracker: str = DEFAULT_TRACKER,
-    init: list[tuple[float, float, float, float]] | list[str] | None = None,
+    init: list[BBox] | list[tuple[float, float, float, float]] | list[str] | None = None,
     config: PipelineConfig | None = None,
 ) -> list[FrameResult]:
     """Track a sequence in memory and return one :class:`FrameResult` per frame.
 
-    ``init`` boxes are ``(x, y, w, h)`` tuples or ``"x,y,w,h"`` strings (ids 1..N); by
-    default the sequence's own first-frame truth is used.
+    Parameters
+    ----------
+    sequence : Sequence or path
+        An opened sequence or a sequence folder of any supported layout.
+    tracker : str
+        An engine of ``dualtrack trackers``; default ``dual``.
+    init : list of BBox, ``(x, y, w, h)`` or ``"x,y,w,h"``, optional
+        The targets' boxes in frame 1 (ids 1..N); default the sequence's own first-frame truth.
+    config : PipelineConfig, optional
+        Every stage's parameters; default ``PipelineConfig()``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pipeline import BBox, PipelineConfig, synthesize_random, track
+    >>> folder = synthesize_random(tempfile.mkdtemp() + "/scene", seed=3, targets=1, frames=30, progress=False)
+    >>> results = track(folder, config=PipelineConfig())  # started from the scene's first-frame truth
+    >>> len(results), results[-1].targets[0].status.value
+    (30, 'tracking')
+    >>> again = track(folder, tracker="meanshift", init=[BBox(*results[0].targets[0].box.as_tuple())])
+    >>> again[0].targets[0].box == results[0].targets[0].box
+    True
     """
     seq = sequence if isinstance(sequence, Sequence) else open_sequence(sequence)
     cfg = config or PipelineConfig()
-    init_strs = [i if isinstance(i, str) else ",".join(map(str, i)) for i in init] if init else None
-    targets = resolve_init(seq, init_strs)
+    targets = resolve_init(seq, list(init) if init else None)
     engine = make_tracker(tracker, cfg)
     return [s.result for s in iter_track(seq, engine, targets)]
 
@@ -174,8 +193,41 @@ class _RrdTrackSink:
         self.sink.close()  # type: ignore[attr-defined]
 
 
-def run_track(seq_path: str | Path, opts: RunOptions) -> RunResult:
-    """``dualtrack track``: track a sequence folder and write its run folder (through ``pipeline.runloop``)."""
+def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: PipelineConfig | None = None,
+              **options: object) -> RunResult:
+    """``dualtrack track``: track a sequence folder and write its run folder (through ``pipeline.runloop``).
+
+    Parameters
+    ----------
+    seq_path : path
+        The sequence folder.
+    opts : RunOptions, optional
+        The options of ``dualtrack track``; or give them as keywords (``out_dir=..., tracker=...``).
+    config : PipelineConfig, optional
+        Every stage's parameters (instead of ``RunOptions.config_path`` / ``sets``).
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> from pathlib import Path
+    >>> from pipeline import PipelineConfig, run_track, synthesize_random
+    >>> root = Path(tempfile.mkdtemp())
+    >>> scene = synthesize_random(root / "scene", seed=3, targets=1, frames=30, progress=False)
+    >>> res = run_track(scene, out_dir=root / "run", config=PipelineConfig(), rrd=False, plots=False,
+    ...                 progress=False)
+    >>> res.complete, sorted(p.name for p in res.out_dir.iterdir())
+    (True, ['summary.json', 'targets.csv', 'tracks.csv'])
+    >>> json.loads((res.out_dir / "summary.json").read_text())["frames"]
+    30
+    """
+    if opts is None:
+        opts = RunOptions(**options)  # type: ignore[arg-type]
+    elif options:
+        raise InputError(f"give either opts or keyword options, not both: {', '.join(options)}")
+    if config is not None:
+        from dataclasses import replace
+
+        opts = replace(opts, config=config)
     from pipeline.eval import curves, evaluate
     from pipeline.io.results import TrackTable
     from pipeline.runloop import Job, run_job

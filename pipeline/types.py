@@ -1,6 +1,6 @@
 """Shared value types and the one geometry convention of dualtrack.
 
-Geometry convention (design.md, written down once here):
+Geometry convention (docs/formats.md, written down once here):
 
 * Images are numpy arrays indexed ``[row, col]`` = ``[y, x]``; visible frames are
   ``(H, W, 3)`` uint8 **BGR** (OpenCV order), infrared frames ``(H, W)`` uint8 after
@@ -37,7 +37,16 @@ Points = NDArray[np.float64]
 
 @dataclass(frozen=True, slots=True)
 class BBox:
-    """Axis-aligned box ``(x, y, w, h)`` in continuous 0-based px (see module doc)."""
+    """Axis-aligned box ``(x, y, w, h)`` in continuous 0-based px (see module doc).
+
+    Examples
+    --------
+    >>> b = BBox.from_center(50, 40, 20, 10)
+    >>> b, b.area
+    (BBox(x=40.0, y=35.0, w=20, h=10), 200)
+    >>> round(b.iou(BBox(45, 35, 20, 10)), 3)  # shifted by a quarter of its width
+    0.6
+    """
 
     x: float
     y: float
@@ -128,7 +137,7 @@ class BBox:
 
 
 class TargetStatus(enum.StrEnum):
-    """Per-target status; the values are the names design.md fixes."""
+    """Per-target status; the values are the names docs/formats.md lists."""
 
     TENTATIVE = "tentative"
     TRACKING = "tracking"

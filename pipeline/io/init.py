@@ -1,4 +1,4 @@
-"""Initial targets, by the rules of design.md (first rule that applies):
+"""Initial targets, by the rules of docs/formats.md (first rule that applies):
 
 1. ``--init x,y,w,h`` (repeatable; ids 1..N in order);
 2. ``--init-file F``: one ``x,y,w,h`` per line, or MOT rows of frame 1 (ids from the file);
@@ -107,13 +107,25 @@ def truth_init(seq: Sequence, channel: str | None = None) -> list[InitTarget]:
 
 def resolve_init(
     seq: Sequence,
-    init: list[str] | None = None,
+    init: list[str] | list[BBox] | list[tuple[float, float, float, float]] | None = None,
     init_file: str | Path | None = None,
     channel: str | None = None,
 ) -> list[InitTarget]:
-    """Apply rules 1, 2 and 4 of the module doc and validate the result."""
+    """Apply rules 1, 2 and 4 of the module doc and validate the result (``init`` items are ``"x,y,w,h"``
+    strings, :class:`BBox` or ``(x, y, w, h)`` tuples; ids 1..N)."""
     if init:
-        targets = [InitTarget(i, parse_box_arg(s)) for i, s in enumerate(init, start=1)]
+        def box(item: object) -> BBox:
+            if isinstance(item, BBox):
+                return item
+            if isinstance(item, str):
+                return parse_box_arg(item)
+            try:
+                x, y, w, h = (float(v) for v in item)  # type: ignore[attr-defined]
+            except (TypeError, ValueError):
+                raise InputError(f"an initial box must be x,y,w,h; got {item!r}") from None
+            return BBox(x, y, w, h)
+
+        targets = [InitTarget(i, box(s)) for i, s in enumerate(init, start=1)]
     elif init_file is not None:
         targets = read_init_file(Path(init_file))
     else:

@@ -118,7 +118,27 @@ def _good(x: float, threshold: float) -> bool:
 
 
 def decide(ev: Evidence, cfg: DualConfig) -> Decision:
-    """The measurement of one target in one frame (module doc)."""
+    """The measurement of one target in one frame (the rules of the module doc, in order).
+
+    Examples
+    --------
+    A clean contour where a confident filter detection is (rule 1), then the same frame with the
+    contour leaking into a neighbour (rule 2):
+
+    >>> from pipeline.trackers.dual import DualConfig, Evidence, decide
+    >>> from pipeline.types import BBox
+    >>> at = lambda cx: BBox.from_center(cx, 100, 20, 50)
+    >>> ev = Evidence(measured_last=True, missing=0, prior=at(100), ref_size=(20, 50), colour_informative=True,
+    ...               rho_meanshift=0.9, meanshift_box=at(101), contour_box=at(100.5), contour_ok=True,
+    ...               contour_reason="ok", rho_contour=0.9, appearance_box=at(100.2), psr=15.0, rho_appearance=0.9)
+    >>> d = decide(ev, DualConfig())
+    >>> d.case.value, d.why, d.stage
+    ('contour', 'contour-and-appearance', 'levelset')
+    >>> import dataclasses
+    >>> d = decide(dataclasses.replace(ev, contour_ok=False, contour_reason="leak"), DualConfig())
+    >>> d.case.value, d.why, d.box == at(100.2)
+    ('appearance', 'appearance-contour-leak', True)
+    """
     appearance = ev.appearance_box is not None and cfg.appearance_cue
     confident = appearance and _good(ev.psr, cfg.psr_confident)
     can_learn = appearance and _good(ev.psr, cfg.psr_update) or not appearance
