@@ -10,8 +10,7 @@ against the peers), never as absolute promises. With several targets the table a
 has identity purity, ID switches, MOTA and IDF1.
 
 ``repeat`` (``--repeat N``) times every measurement N times and keeps the fastest, as
-``timeit`` does: on a shared or virtual machine other work only ever adds time, and the
-rates measured here drift by 30-50 % from one minute to the next. Accuracy comes from the
+``timeit`` does: on a shared or virtual machine other work only ever adds time. Accuracy comes from the
 last run (the run folder kept); the trackers are deterministic apart from MIL.
 
 ``run_scaling`` (``dualtrack bench --targets 1,2,4,8``) measures how the cost grows with

@@ -16,7 +16,7 @@ PROG = "dualtrack"
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit 1 (design.md), not argparse's 2
+    def error(self, message: str) -> None:  # one line, exit 1 (docs/formats.md), not argparse's 2
         self.exit(1, f"{PROG}: error: {message} (see {self.prog} --help)\n")
 
 

@@ -1,4 +1,4 @@
-"""Speed of the detection-driven tracker's parts (issue 6): detection on 640x480, one frame of
+"""Speed of the detection-driven tracker's parts: detection on 640x480, one frame of
 N tracks x M detections (gating, ROI matching of the gated pairs, assignment).
 
 Usage: python tools/bench_association.py [--tracks 50] [--detections 60] [--repeats 20]

@@ -2,7 +2,7 @@
 
 Usage: python tools/chnn_radar_study.py [--runs 100] [--out DIR] [--seed 0] [--sweep]
 
-The paper's settings (its tables 1-6, algorithms.md §6): targets start at (x, x', y, y') =
+The paper's settings (its tables 1-6, docs/algorithms.md §6): targets start at (x, x', y, y') =
 (1000 m, 200 m/s, 9000 m, 250 m/s) (single), (1000, 200, 9000, -250) and (1000, 200, 5000,
 250) (two); accelerations (+-30, -+30) m/s^2 over steps 25-45 and 60-80 as its table 2/5;
 process (position) noise std 20 m, measurement noise std 200 m; A = 1, B = L + 1 (L the gate

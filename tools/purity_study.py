@@ -2,7 +2,7 @@
 
 Usage: python tools/purity_study.py [--runs 50] [--out DIR] [--seed 0] [--matcher ecc|gat]
 
-Set-up (algorithms.md §5b, the paper's settings where it gives them):
+Set-up (docs/algorithms.md §5b, the paper's settings where it gives them):
 
 * 4 targets of classes {1, 1, 2, 3} (targets 1 and 2 look alike), 100 frames 2 s apart,
   every target detected every frame (P_D = 1, no false alarms);

@@ -1,4 +1,4 @@
-"""Cost of Rerun logging per frame pair (design.md goal: <= 1 ms at 320x240).
+"""Cost of Rerun logging per frame pair (docs/formats.md goal: <= 1 ms at 320x240).
 
 Usage: python tools/rerun_cost.py [SEQ_DIR] [--frames N]
 

@@ -1,6 +1,6 @@
 """Evaluation against ground truth (``dualtrack evaluate`` and the end of every ``track`` run).
 
-:func:`evaluate` returns the object ``evaluate --json`` prints (design.md):
+:func:`evaluate` returns the object ``evaluate --json`` prints (docs/formats.md):
 
 * default protocol: top-level ``p5``, ``p20``, ``auc``, ``mean_error_px``, ``npr`` (means
   over targets), scored against the visible truth when both channels have truth, else the

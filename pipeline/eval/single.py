@@ -1,7 +1,7 @@
 """Single-target metrics: centre error, precision, success, NPR, MPR/MSR.
 
 Boxes are ``(N, 4)`` arrays of ``x, y, w, h`` (continuous 0-based px, NaN rows = no box).
-Our default protocol (design.md): every frame with truth counts, frame 1 included;
+Our default protocol (docs/formats.md): every frame with truth counts, frame 1 included;
 a frame where the tracker gave no box has centre error ``inf`` and IoU 0; precision
 counts ``error <= tau`` (inclusive); success counts ``IoU > t`` for ``t = 0, 0.05, ..., 1``
 and AUC is the mean of those 21 rates.

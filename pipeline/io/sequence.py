@@ -1,6 +1,6 @@
 """Sequence folders: layout detection, lazy frame pairs, ground truth.
 
-The layouts of design.md are recognised by their folder and file names:
+The layouts of docs/formats.md are recognised by their folder and file names:
 
 =============  =================  ==================  ====================================  ====
 layout         visible            infrared            ground truth                          base
@@ -353,7 +353,7 @@ def open_sequence(
     align: str = "none",
     gt_base: float | None = None,
 ) -> Sequence:
-    """Open a sequence folder of any layout design.md names.
+    """Open a sequence folder of any layout docs/formats.md names.
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """The Rerun recording (``run.rrd``): the only module that imports ``rerun``.
 
-Entity paths (design.md): ``visible/image``, ``infrared/image`` (the source JPEG/PNG
+Entity paths (docs/formats.md): ``visible/image``, ``infrared/image`` (the source JPEG/PNG
 bytes passed through as ``EncodedImage``; frames without source bytes, e.g. from a
 video, are JPEG-encoded once), ``visible/targets`` and ``infrared/targets`` (Boxes2D,
 class id = track id, label ``T<id> <status>``; occluded boxes, and merged targets other than the merge's

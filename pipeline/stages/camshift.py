@@ -2,7 +2,7 @@
 
 The appearance is a 1-D histogram: hue (OpenCV 0..179, pixels of low saturation or
 brightness masked out) in visible frames, intensity in infrared frames. Back-projection
-is a numpy lookup (never the 3-D ``calcBackProject`` path; algorithms.md §7.1).
+is a numpy lookup (never the 3-D ``calcBackProject`` path; docs/algorithms.md §7.1).
 """
 
 from __future__ import annotations

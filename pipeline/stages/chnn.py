@@ -1,6 +1,6 @@
 """Competitive Hopfield neural network (CHNN) data association, with an image term.
 
-The associator of the fused-image CHNN paper (its eq. 17-22), as algorithms.md §6 lays it
+The associator of the fused-image CHNN paper (its eq. 17-22), as docs/algorithms.md §6 lays it
 out. The neuron matrix V is (N + M) x N: columns are the N targets, rows 0..N-1 their
 pseudo-measurements ("no measurement for target i"), rows N..N+M-1 the M measurements.
 

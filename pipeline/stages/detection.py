@@ -1,7 +1,7 @@
 """Target detection from the local standard-deviation map (STDM) and ROI discrimination.
 
 The detection stage of the ROI feature-matching fusion paper (its eq. 5), in the form of
-algorithms.md §5:
+docs/algorithms.md §5:
 
 1. :func:`stdm`: the standard deviation of the grey levels in a ``w x w`` window around
    every pixel, ``sqrt(max(E[f^2] - E[f]^2, 0))`` from two box filters on the frame minus
@@ -78,8 +78,8 @@ class DetectionConfig:
         STDM by ``k_sigma`` robust deviations (1.4826 x the median absolute deviation; both
         medians over a regular grid of about 4 000 pixels, whatever the frame size);
         ``local``: exceeds the mean of the STDM over ``threshold_window_px`` by ``k_sigma``
-        standard deviations there (algorithms.md §5 (a); measured worse on the synthetic
-        scenes: a target fills much of its own window and raises its own threshold).
+        standard deviations there (docs/algorithms.md §5 (a); a target that fills much of
+        its own window raises its own threshold).
     threshold_window_px : int
         Side of the window of the local threshold's mean and deviation, odd, in [9, 255];
         default 61.
@@ -107,11 +107,9 @@ class DetectionConfig:
     split_core_fraction : float
         Beyond the paper: a region whose distance transform has two or more cores above this
         fraction of its maximum (two torsos joined at a narrower neck) is split, every pixel
-        going to its nearest core, in [0, 1); default 0.7, 0 disables. Measured on seven
-        synthetic scenes (every 5th frame): mean recall 0.969 without, 0.996 with (people
-        walking side by side or stacked in depth touch and were one region), precision
-        0.995 -> 1.000. The detection-driven tracker does not split unless
-        ``association.split_touching``.
+        going to its nearest core, in [0, 1); default 0.7, 0 disables. Decreasing it splits
+        more readily, down to one body's head and torso. The detection-driven tracker does
+        not split unless ``association.split_touching``.
     split_min_core_px : int
         Cores smaller than this (px) do not count, >= 1; default 10 (a head's core stays
         under it).

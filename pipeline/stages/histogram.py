@@ -7,7 +7,7 @@ Epanechnikov weight ``k = 1 - r^2`` for ``r^2 < 1`` (constants cancel after
 normalization). Pixel centres are at ``(c + 0.5, r + 0.5)`` (see ``pipeline.types``).
 
 Histograms are built from a *bin-index image* computed once per frame on a region of
-interest, so the 3-D ``cv2.calcBackProject`` bug (algorithms.md §7.1) never arises:
+interest, so the 3-D ``cv2.calcBackProject`` bug (docs/algorithms.md §7.1) never arises:
 back-projection is a numpy lookup ``hist[bins]``.
 """
 

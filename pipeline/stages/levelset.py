@@ -8,7 +8,7 @@ inside = ``phi < 0``. Gradient flow (one explicit step of size ``dt``)::
                  + lambda * delta_eps(phi) * (grad g . N + g * div N)
                  + alpha * g * delta_eps(phi)),      N = grad phi / |grad phi|
 
-discretized as Li's reference code (algorithms.md §1.4): Neumann border by mirroring the
+discretized as Li's reference code (docs/algorithms.md §1.4): Neumann border by mirroring the
 first interior row/column, central differences, the distance term written
 ``div((d_p - 1) grad phi) + laplacian(phi)``. ``kappa = 1`` is the paper's ``g``; a larger
 ``kappa`` keeps weak (low-contrast IR) edges able to stop the front.
@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 @dataclass(frozen=True)
 class LevelSetConfig:
-    """DRLSE parameters (algorithms.md §0 and §1.5-1.7 give the defaults' sources).
+    """DRLSE parameters (docs/algorithms.md §0 and §1.5-1.7 give the defaults' sources).
 
     Parameters
     ----------
@@ -51,15 +51,13 @@ class LevelSetConfig:
     area_weight : float
         alpha, weight of the g-weighted area (balloon) term; default 0.6: positive
         shrinks a contour that starts outside the target. Increasing it moves the front
-        faster and lets it leak through weak edges: on synthetic people (soft IR edges,
-        thin limbs) alpha = 1.5 (the demos' value) gave a mean box IoU of 0.39 from a cold
-        start, 0.6 gave 0.86 with lambda = 5. (The paper's alpha; the scale and model
-        learning rates have their own names.)
+        faster and lets it leak through weak edges (soft IR edges and thin limbs want
+        less than the demos' 1.5). (The paper's alpha; the scale and model learning rates
+        have their own names.)
     area_weight_warm : float
         alpha for warm starts, which begin ``contour.warm_dilate_px`` outside the
-        previous contour and shrink back onto the edges; default 0.6 (measured mean AUC
-        over seven synthetic scenes 0.72 with 0.6 and a 3 px dilation, 0.62 with alpha 0
-        and no dilation, where the contour could only erode).
+        previous contour and shrink back onto the edges; default 0.6. 0 lets a warm
+        contour only erode.
     dirac_width : float
         epsilon of the smoothed Dirac delta, px, > 0; default 1.5.
     smoothing_sigma_px : float
@@ -77,13 +75,10 @@ class LevelSetConfig:
     max_iterations_cold : int
         Iteration cap from a binary step, >= 1; default 300.
     max_iterations_warm : int
-        Iteration cap from the previous frame's level-set function, >= 1; default 15:
-        warm starts begin a pixel or two from the edges, and measured IoU was the same
-        with 10, 20 or 150 (0.95-0.96 on a tracked ellipse). With the default stopping
-        rule (a check every 5 iterations against the area 10 iterations earlier) the
-        first possible stop is at iteration 15, so warm starts always run the full 15:
-        a stop window of 5 (stops from iteration 10) measured no faster on the eight
-        scenes and flipped seed 2 of shadows (P@20 0.78 -> 0.44).
+        Iteration cap from the previous frame's level-set function, >= 1; default 15
+        (warm starts begin a pixel or two from the edges). With the default stopping rule
+        (a check every 5 iterations against the area 10 iterations earlier) the first
+        possible stop is at iteration 15, so warm starts run the full 15.
     refine_iterations : int
         Iterations with alpha = 0 after convergence, >= 0; default 5.
     check_every : int
@@ -204,7 +199,7 @@ def edge_map(ir: np.ndarray, cfg: LevelSetConfig) -> EdgeMap:
     """g = 1/(1 + |grad(G_sigma * I)|^2 / kappa^2) on 0..255 intensities, and grad g.
 
     Smoothing uses a reflecting border (a zero-padded blur would create false edges at
-    the ROI border; algorithms.md §1.4). Derivatives are central differences (OpenCV,
+    the ROI border; docs/algorithms.md §1.4). Derivatives are central differences (OpenCV,
     replicated border); the median for the automatic kappa is taken on every other
     pixel of every other row.
     """

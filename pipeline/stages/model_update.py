@@ -13,7 +13,7 @@ y2 with the updated scale and ``q`` the model. Update (eq. 9), then renormalizat
 2. ``MCD_u > 0`` and ``u <= k``: ``q_u`` unchanged: the bins that match best anchor the model;
 3. ``MCD_u > 0`` and ``u > k``: ``q_u <- MCD_u p_u + (1 - MCD_u) q_u``.
 
-Reading of ``k`` (the paper does not define it; algorithms.md §3): bins are ranked by MCD
+Reading of ``k`` (the paper does not define it; docs/algorithms.md §3): bins are ranked by MCD
 in descending order and ``u <= k`` means rank <= k. ``rank_rule`` chooses k: ``cumulative``
 (default; the smallest k whose cumulative MCD reaches ``rank_mass`` = 0.8), ``count``
 (a fixed ``rank_count``), or ``above_average`` (every bin whose MCD exceeds the mean MCD
@@ -51,7 +51,7 @@ class ModelUpdateConfig:
         k for the ``count`` rule, >= 0; default 16.
     min_rho : float
         Update only when the Bhattacharyya coefficient at y2 is at least this, in [0, 1];
-        default 0.8 (algorithms.md §3). Increasing it updates less often and more safely.
+        default 0.8 (docs/algorithms.md §3). Increasing it updates less often and more safely.
     """
 
     enabled: bool = True

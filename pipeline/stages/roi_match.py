@@ -6,12 +6,12 @@ the GAT iteration (eq. 10-11). Two routes:
 
 * :func:`ecc_match` (default): OpenCV's ECC (``cv2.findTransformECC``, ``MOTION_AFFINE``),
   which maximizes the correlation coefficient itself, seeded with the centres aligned
-  (algorithms.md §4.1: all 7 arguments, float32 2x3 warp, ``cv2.error`` -7 = no
+  (docs/algorithms.md §4.1: all 7 arguments, float32 2x3 warp, ``cv2.error`` -7 = no
   convergence, NaN checks, a flat template has no correlation). The input chip is padded
   beyond the template (:func:`roi_chips`): with equal sizes ECC failed on a 2.9 px shift
   of a smooth texture, padded it recovered 10 degrees, 5 % scale and 3 px shifts to 0.01 px;
 * :func:`gat_match` (``roi_match.method = "gat"``): the paper's global affine
-  transformation as algorithms.md §4 reconstructs it: weighted least squares of the point
+  transformation as docs/algorithms.md §4 reconstructs it: weighted least squares of the point
   pairs under a Gaussian window whose width is annealed, with a gradient-direction
   constraint, keeping the iterate with the best NCC.
 
@@ -199,7 +199,7 @@ def _points(img: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 def gat_match(f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarray | None = None) -> Match:
-    """The paper's GAT correlation (algorithms.md §4): anneal D, solve the weighted least
+    """The paper's GAT correlation (docs/algorithms.md §4): anneal D, solve the weighted least
     squares ``A r1 + b ~ r2`` over point pairs, keep the iterate with the best NCC."""
     from scipy.spatial import cKDTree
 

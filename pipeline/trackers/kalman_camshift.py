@@ -1,6 +1,6 @@
 """``kalman-camshift``: CamShift searching from a Kalman prediction, with graded occlusion.
 
-The tracker of Yan et al. 2014 (``../shared/seeds/kalman-camshift-occlusion.md``):
+The tracker of Yan et al. 2014 (docs/algorithms.md §7):
 
 1. predict the box with the 12-state constant-acceleration Kalman filter;
 2. run CamShift on the hue (visible) or intensity (IR) back-projection from a search
@@ -30,7 +30,7 @@ Readings of the paper where it is open (documented choices):
   last good size; it is the re-acquisition check whenever the target is missing, since
   CamShift's adaptive window grows onto same-coloured occluders.
 
-Beyond the paper (each measured in the closing note of the issue):
+Beyond the paper:
 
 * while the target is occluded the size rates and the accelerations are held at zero,
   so the filter coasts at constant velocity and size: fed its own prediction back (as

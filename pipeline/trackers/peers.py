@@ -2,7 +2,7 @@
 
 They are the peers people use today and the baseline every dualtrack tracker is compared
 with. Each runs on one channel: visible when the sequence has it, else infrared (as
-design.md asks of single-channel folders). CSRT and KCF live in OpenCV's contrib
+docs/formats.md asks of single-channel folders). CSRT and KCF live in OpenCV's contrib
 modules; where the installed OpenCV lacks them, asking for them is a clear error.
 """
 
@@ -44,9 +44,8 @@ class CamShiftConfig:
     saturation_bins : int
         Saturation bins crossed with the hue bins in the back-projection of
         ``kalman-camshift``, in [1, 16]; default 4. 1 is the hue-only back-projection
-        the paper and OpenCV's recipe use; measured on the occluded-moving scene it
-        locks onto a brown wall that shares the hue of the target's shirt and skin
-        (P@20 0.36 vs 1.00 with 4). The plain ``camshift`` peer always uses hue only.
+        the paper and OpenCV's recipe use; hue alone cannot tell a brown wall from a
+        shirt of its hue. The plain ``camshift`` peer always uses hue only.
     """
 
     hue_bins: int = 16

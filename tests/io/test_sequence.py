@@ -1,4 +1,4 @@
-"""Every layout of design.md, channel detection, 16-bit IR, and the bad-input errors."""
+"""Every layout of docs/formats.md, channel detection, 16-bit IR, and the bad-input errors."""
 
 from __future__ import annotations
 

@@ -36,7 +36,7 @@ def test_chnn_is_one_to_one_and_equals_hungarian_on_clear_cases(distance, expect
 
 def test_a_local_minimum_is_possible_and_measured():
     """Winner-take-all moves one column at a time: it cannot make the 2-swap that reaches
-    the optimum here (algorithms.md §6); the Hungarian reference shows the gap."""
+    the optimum here (docs/algorithms.md §6); the Hungarian reference shows the gap."""
     d = cost_matrix(np.array([[1.0, 1.1], [1.05, 2.9]]), 3.03)
     res = chnn(d, A=1.0, B=4.03, init="pseudo")
     ref, best = hungarian_reference(d)

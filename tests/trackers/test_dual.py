@@ -1,4 +1,4 @@
-"""The dual tracker: the issue's sequence-level acceptance, the single-channel modes, eq. 7, observability."""
+"""The dual tracker: sequence-level accuracy on the named scenes, the single-channel modes, eq. 7, observability."""
 
 from __future__ import annotations
 

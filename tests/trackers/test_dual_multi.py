@@ -1,4 +1,4 @@
-"""Many targets through mutual occlusion (issue 4): merge, split, re-association, events."""
+"""Many targets through mutual occlusion: merge, split, re-association, events."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ def test_identities_survive_crossings_and_lookalikes_side_by_side(scene, tmp_pat
 
 
 def test_group_of_three_merging_at_once(scene, tmp_path):
-    """Acceptance of issue 4 on the group scene. Measured on seeds 0-2: purity 0.988 / 0.992 / 0.978, no ID
+    """The group scene. Measured on seeds 0-2: purity 0.988 / 0.992 / 0.978, no ID
     switch, P@20 0.998; without keeping coasting members inside the merged blob 0.925 / 0.928 / 0.937 with
     2 / 2 / 0 switches; independent tracking without merge handling: P@20 0.79, purity 0.70, 3 switches."""
     m = metrics(scene("group3"), tmp_path, "group3")
