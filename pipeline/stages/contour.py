@@ -21,6 +21,7 @@ thermal crossover).
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 from functools import cache
 
@@ -121,12 +122,24 @@ class LevelSetMemory:
     origin: tuple[int, int]
 
 
+class ContourReason(enum.StrEnum):
+    """Why a contour is or is not a measurement (``ContourResult.reason``; its value is what targets.csv says)."""
+
+    OK = "ok"
+    NO_COMPONENT = "no-component"  # nothing overlaps the expected box
+    LEAK = "leak"  # the selection touches the region's border
+    COLLAPSE = "collapse"  # under ``min_area_fraction`` of the expected box
+    TOO_LARGE = "too-large"  # over ``max_area_ratio`` of it (merged with a warm neighbour)
+    SHAPE_CHANGE = "shape-change"  # width or height off by more than ``max_dimension_ratio``
+    LOW_CONTRAST = "low-contrast"  # its IR differs from the ring around by under ``min_contrast`` (crossover)
+
+
 @dataclass(frozen=True)
 class ContourResult:
     """Outcome of :func:`extract_contour` (boxes and contours in frame px)."""
 
     ok: bool
-    reason: str
+    reason: ContourReason
     box: BBox | None
     contour: tuple[Points, ...]
     iterations: int
@@ -289,7 +302,7 @@ def extract_contour(
     roi = ir[y0:y1, x0:x1]
     empty_mem = LevelSetMemory(np.zeros((1, 1), np.float32), (x0, y0))
     if roi.shape[0] < 8 or roi.shape[1] < 8:
-        return ContourResult(False, "no-component", None, (), 0, 0.0, empty_mem)
+        return ContourResult(False, ContourReason.NO_COMPONENT, None, (), 0, 0.0, empty_mem)
     k = int(round(cfg.closing_fraction * (part_width or expected.w))) | 1
     if cfg.closing_fraction > 0 and k >= 3:
         roi = cv2.morphologyEx(roi, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
@@ -310,7 +323,7 @@ def extract_contour(
     comps = [BBox(float(stats[i, 0] + x0), float(stats[i, 1] + y0), float(stats[i, 2]), float(stats[i, 3]))
              for i in range(1, n) if stats[i, 4] >= 4]
     if n <= 1:
-        return ContourResult(False, "no-component", None, (), res.iterations, 0.0, mem, tuple(comps), warm)
+        return ContourResult(False, ContourReason.NO_COMPONENT, None, (), res.iterations, 0.0, mem, tuple(comps), warm)
     ex = expected.shifted(-x0, -y0)
     ex_mask = np.zeros(mask.shape, bool)
     ex_mask[max(int(ex.y), 0):max(int(np.ceil(ex.y2)), 0), max(int(ex.x), 0):max(int(np.ceil(ex.x2)), 0)] = True
@@ -318,7 +331,7 @@ def extract_contour(
     inside_counts[0] = 0
     best = int(np.argmax(inside_counts))
     if inside_counts[best] == 0:
-        return ContourResult(False, "no-component", None, (), res.iterations, 0.0, mem, tuple(comps), warm)
+        return ContourResult(False, ContourReason.NO_COMPONENT, None, (), res.iterations, 0.0, mem, tuple(comps), warm)
     sel = labels == best
     grown = ex.scaled(1.15)
     for i in range(1, n):
@@ -338,19 +351,19 @@ def extract_contour(
     contrast = _ring_contrast(roi, sel_u8)
     cs, _ = cv2.findContours(sel_u8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     contour = tuple(c.reshape(-1, 2).astype(np.float64) + (x0 + 0.5, y0 + 0.5) for c in cs if len(c) >= 3)
-    reason = "ok"
+    reason = ContourReason.OK
     if touches:
-        reason = "leak"
+        reason = ContourReason.LEAK
     elif box.area < cfg.min_area_fraction * expected.area:
-        reason = "collapse"
+        reason = ContourReason.COLLAPSE
     elif box.area > cfg.max_area_ratio * expected.area:
-        reason = "too-large"
+        reason = ContourReason.TOO_LARGE
     elif not (1 / cfg.max_dimension_ratio <= box.w / expected.w <= cfg.max_dimension_ratio
               and 1 / cfg.max_dimension_ratio <= box.h / expected.h <= cfg.max_dimension_ratio):
-        reason = "shape-change"
+        reason = ContourReason.SHAPE_CHANGE
     elif abs(contrast) < cfg.min_contrast:
-        reason = "low-contrast"
-    return ContourResult(reason == "ok", reason, box, contour, res.iterations, contrast, mem, tuple(comps), warm,
+        reason = ContourReason.LOW_CONTRAST
+    return ContourResult(reason == ContourReason.OK, reason, box, contour, res.iterations, contrast, mem, tuple(comps), warm,
                          at_border)
 
 

@@ -24,6 +24,7 @@ docs/algorithms.md §5:
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 
@@ -175,6 +176,16 @@ class DetectionConfig:
             raise ValueError(f"detection.split_min_core_px must be an integer >= 1; got {self.split_min_core_px!r}")
 
 
+class RegionReason(enum.StrEnum):
+    """Why a region was kept or dropped (``Region.reason``, ``rois.csv``)."""
+
+    OK = "ok"
+    TOO_SMALL = "too-small"  # boundary length under the range
+    TOO_LARGE = "too-large"  # over it
+    ELONGATED = "elongated"  # minimum-area-rectangle aspect over ``max_aspect``
+    COMPLEX = "complex"  # C2 over ``max_complexity``
+
+
 @dataclass(frozen=True)
 class Region:
     """A connected foreground region and its shape features."""
@@ -188,7 +199,7 @@ class Region:
     c2: float  # P^2 / (4 pi A), 1 for a disk
     contour: np.ndarray = field(repr=False)  # (K, 2) float32, frame px
     accepted: bool = True
-    reason: str = "ok"
+    reason: RegionReason = RegionReason.OK
 
 
 @dataclass(frozen=True)
@@ -426,13 +437,13 @@ def discriminate(found: list[Region], cfg: DetectionConfig) -> tuple[list[Region
     lo, hi = cfg.perimeter_px
     for r in found:
         if r.perimeter_px < lo:
-            reason = "too-small"
+            reason = RegionReason.TOO_SMALL
         elif r.perimeter_px > hi:
-            reason = "too-large"
+            reason = RegionReason.TOO_LARGE
         elif r.aspect > cfg.max_aspect:
-            reason = "elongated"
+            reason = RegionReason.ELONGATED
         elif r.c2 > cfg.max_complexity:
-            reason = "complex"
+            reason = RegionReason.COMPLEX
         else:
             ok.append(r)
             continue

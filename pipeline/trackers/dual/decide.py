@@ -40,6 +40,7 @@ import enum
 import math
 from dataclasses import dataclass
 
+from pipeline.stages.contour import ContourReason
 from pipeline.trackers.dual.config import DualConfig
 from pipeline.types import BBox, TargetStatus
 
@@ -68,7 +69,7 @@ class Evidence:
     meanshift_box: BBox | None
     contour_box: BBox | None
     contour_ok: bool  # the contour passed its checks
-    contour_reason: str  # ok, leak, collapse, too-large, shape-change, low-contrast, no-component
+    contour_reason: str  # a ContourReason, or "no-contour" without an IR frame
     rho_contour: float  # colour match at the contour's box
     appearance_box: BBox | None
     psr: float
@@ -167,7 +168,7 @@ def decide(ev: Evidence, cfg: DualConfig) -> Decision:
             return Decision(Case.CONTOUR, contour, 1.0, TargetStatus.TRACKING, "contour-and-appearance", True,
                             can_learn and not colour_says_no, "levelset")
         if confident:
-            partial = cut or (ev.contour_reason == "collapse" and cfg.contour_checks)
+            partial = cut or (ev.contour_reason == ContourReason.COLLAPSE and cfg.contour_checks)
             status = TargetStatus.OCCLUDED_PARTIAL if partial else TargetStatus.TRACKING
             why = "appearance-over-contour" if contour_clean else f"appearance-contour-{ev.contour_reason}"
             return Decision(Case.APPEARANCE, ev.appearance_box, 1.5, status, why, False, can_learn and not partial,
@@ -184,7 +185,7 @@ def decide(ev: Evidence, cfg: DualConfig) -> Decision:
         if strong_colour:
             return Decision(Case.COLOUR, _resized(ev.meanshift_box, ev.ref_size), 2.0, TargetStatus.TRACKING,
                             f"colour-contour-{ev.contour_reason}", stage="meanshift")
-        if (ev.contour_reason == "low-contrast" and ev.colour_informative and ev.meanshift_box is not None
+        if (ev.contour_reason == ContourReason.LOW_CONTRAST and ev.colour_informative and ev.meanshift_box is not None
                 and _good(ev.rho_meanshift, cfg.occlusion_rho)):
             return Decision(Case.COLOUR, _resized(ev.meanshift_box, ev.ref_size), 2.0, TargetStatus.TRACKING,
                             "colour-ir-faded", stage="meanshift")
@@ -203,7 +204,7 @@ def decide(ev: Evidence, cfg: DualConfig) -> Decision:
             return Decision(Case.REACQUIRED, contour, 1.0, TargetStatus.TRACKING, "contour-near-prediction", True,
                             stage="levelset")
     if (ev.colour_informative and ev.meanshift_box is not None and _good(ev.rho_meanshift, cfg.reacquire_rho)
-            and near_prior(ev.meanshift_box, ev, cfg) and (strong_colour or ev.contour_reason == "low-contrast")):
+            and near_prior(ev.meanshift_box, ev, cfg) and (strong_colour or ev.contour_reason == ContourReason.LOW_CONTRAST)):
         return Decision(Case.REACQUIRED, _resized(ev.meanshift_box, ev.ref_size), 2.0, TargetStatus.TRACKING,
                         "colour-near-prediction", stage="meanshift")
     return _coast(ev, cfg, cut)

@@ -10,7 +10,7 @@ import numpy as np
 
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
-from pipeline.stages.contour import ContourResult, extract_contour
+from pipeline.stages.contour import ContourReason, ContourResult, extract_contour
 from pipeline.trackers.dual.config import DualConfig
 from pipeline.trackers.dual.cues import ColourStep, add_time, appearance_cue, filter_images, match_at
 from pipeline.trackers.dual.decide import Case, Decision, Evidence, decide
@@ -69,7 +69,7 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
         c = extract_contour(ir, expected, cfg.contour, cfg.levelset, memory, shift)  # type: ignore[attr-defined]
         clock = add_time(timing, "levelset", clock)
     contour_usable = c is not None and c.box is not None and (
-        c.ok or not dcfg.contour_checks or (not dcfg.channel_weighting and c.reason == "low-contrast"))
+        c.ok or not dcfg.contour_checks or (not dcfg.channel_weighting and c.reason == ContourReason.LOW_CONTRAST))
     mmf = cfg.meanshift.min_mass_fraction  # type: ignore[attr-defined]
     rho_c = match_at(cs.bins, t.q, c.box, cs.roi0, mmf) if (
         contour_usable and cs.informative and cs.bins is not None and c is not None and c.box is not None) else float("nan")
