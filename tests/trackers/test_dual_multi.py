@@ -34,8 +34,8 @@ def test_group_of_three_merging_at_once(scene, tmp_path):
     assert m["purity"]["overall"] >= 0.98, m["purity"]
     assert m["id_switches"] == 0
     # what the merge handling itself is worth, without the correlation filter (which keeps most identities alone)
-    paper = metrics(scene("group3"), tmp_path, "merge", ["dual.appearance_cue=false"])
-    coasting = metrics(scene("group3"), tmp_path, "coast", ["dual.appearance_cue=false", "dual.merge_inside_blob=false"])
+    paper = metrics(scene("group3"), tmp_path, "merge", ["dual.appearance_cue=false", "dual.merge_handling=true"])
+    coasting = metrics(scene("group3"), tmp_path, "coast", ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_inside_blob=false"])
     assert paper["purity"]["overall"] >= coasting["purity"]["overall"] + 0.03, (paper["purity"], coasting["purity"])
     indep = metrics(scene("group3"), tmp_path, "indep", ["dual.appearance_cue=false", "dual.merge_handling=false"])
     assert paper["purity"]["overall"] >= indep["purity"]["overall"] + 0.1, (paper["purity"], indep["purity"])
@@ -43,13 +43,14 @@ def test_group_of_three_merging_at_once(scene, tmp_path):
 
 def test_lookalikes_need_the_beyond_the_paper_placement(scene, tmp_path):
     """The paper's eq. 11 with mean shift for the foreground lets one twin's mean shift slide onto the other."""
-    ours = metrics(scene("meet-part"), tmp_path, "auto", ["dual.appearance_cue=false"])
-    paper = metrics(scene("meet-part"), tmp_path, "eq11", ["dual.appearance_cue=false", "dual.merge_position=eq11"])
+    ours = metrics(scene("meet-part"), tmp_path, "auto", ["dual.appearance_cue=false", "dual.merge_handling=true"])
+    paper = metrics(scene("meet-part"), tmp_path, "eq11", ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_position=eq11"])
     assert ours["purity"]["overall"] >= paper["purity"]["overall"] + 0.1, (ours["purity"], paper["purity"])
 
 
 def test_merge_and_split_events_roles_and_drawing(scene, tmp_path):
-    out = run_track(scene("crossing2"), RunOptions(tracker="dual", out_dir=tmp_path / "r", plots=False)).out_dir
+    out = run_track(scene("crossing2"), RunOptions(tracker="dual", out_dir=tmp_path / "r", plots=False,
+                                                   sets=["dual.merge_handling=true"])).out_dir
     table = list(csv.DictReader((out / "targets.csv").read_text().splitlines()))
     merged = [r for r in table if r["status"] == "merged"]
     assert merged, "the crossing never registered as a merge"

@@ -104,7 +104,10 @@ class DualConfig:
         already), in [0, 10]; default 4.
     merge_handling : bool
         Handle mutual occlusion as the paper does (eq. 10 merge test, foreground and occluded
-        roles, one level set over the merged blob, split and re-association); default True.
+        roles, one level set over the merged blob, split and re-association; status
+        ``merged`` and the merge and split events); default False: with the correlation
+        filter every target keeps itself through a crossing better on its own (True is the
+        paper's, and ``data/dual-paper.toml`` sets it).
     merge_position : str
         Where merged members are placed: ``eq11`` (the paper: the foreground at its mean
         shift, the other mirrored about the blob centre), ``motion`` (the foreground as in
@@ -168,7 +171,7 @@ class DualConfig:
     history_frames: int = 16
     rewind_frames: int = 8
     onset_frames: int = 4
-    merge_handling: bool = True
+    merge_handling: bool = False
     merge_position: str = "auto"
     role_margin: float = 0.05
     split_min_area_fraction: float = 0.3
