@@ -22,20 +22,19 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.errors import ConfigError
+from pipeline.sinks.settings import RerunConfig
 from pipeline.stages.appearance import AppearanceConfig
 from pipeline.stages.association import AssociationConfig
 from pipeline.stages.contour import ContourConfig
 from pipeline.stages.detection import DetectionConfig
 from pipeline.stages.histogram import HistogramConfig
-from pipeline.sinks.settings import RerunConfig
 from pipeline.stages.kalman import KalmanConfig
 from pipeline.stages.levelset import LevelSetConfig
 from pipeline.stages.meanshift import MeanShiftConfig
 from pipeline.stages.model_update import ModelUpdateConfig
 from pipeline.stages.occlusion import OcclusionConfig
 from pipeline.stages.roi_match import RoiMatchConfig
-from pipeline.trackers.dual import DualConfig
-from pipeline.trackers.peers import CamShiftConfig, OpenCVTrackerConfig
+from pipeline.tracker_config import CamShiftConfig, DualConfig, OpenCVTrackerConfig
 
 
 @dataclass(frozen=True)

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pipeline.params import Section, param
+
 
 @dataclass(frozen=True)
-class RerunConfig:
+class RerunConfig(Section):
     """Recording settings.
 
     Parameters
@@ -16,15 +18,12 @@ class RerunConfig:
         it lowers the logging cost per frame; at most this many frames are lost if the
         process is killed outright (an exception or Ctrl-C loses none).
     jpeg_quality : int
-        JPEG quality, 1..100, for frames that have no source bytes to pass through
+        JPEG quality, in [1, 100], for frames that have no source bytes to pass through
         (video input, 16-bit or resized IR); default 90.
     """
 
-    batch_frames: int = 16
-    jpeg_quality: int = 90
+    section = "rerun"
 
-    def __post_init__(self) -> None:
-        if not 1 <= self.batch_frames <= 1000:
-            raise ValueError(f"rerun.batch_frames must be in [1, 1000]; got {self.batch_frames!r}")
-        if not 1 <= self.jpeg_quality <= 100:
-            raise ValueError(f"rerun.jpeg_quality must be in [1, 100]; got {self.jpeg_quality!r}")
+    batch_frames: int = param(16, ge=1, le=1000)
+    jpeg_quality: int = param(90, ge=1, le=100)
+

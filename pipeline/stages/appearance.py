@@ -36,11 +36,12 @@ import cv2
 import numba
 import numpy as np
 
+from pipeline.params import Section, param
 from pipeline.types import BBox
 
 
 @dataclass(frozen=True)
-class AppearanceConfig:
+class AppearanceConfig(Section):
     """The correlation-filter appearance cue.
 
     Parameters
@@ -112,56 +113,31 @@ class AppearanceConfig:
         The tracker estimates the scale every this many frames, >= 1; default 1.
     """
 
-    cell_px: int = 4
-    padding: float = 1.5
-    template_cells: int = 24
-    lambda_reg: float = 1e-2
-    label_sigma_factor: float = 0.1
-    learning_rate: float = 0.02
-    hog_bins: int = 9
-    hog_clip: float = 0.2
+    section = "appearance"
+
+    cell_px: int = param(4, ge=2, le=8)
+    padding: float = param(1.5, ge=0.5, le=4)
+    template_cells: int = param(24, ge=8, le=64)
+    lambda_reg: float = param(1e-2, gt=0)
+    label_sigma_factor: float = param(0.1, gt=0, le=1)
+    learning_rate: float = param(0.02, ge=0, le=1)
+    hog_bins: int = param(9, ge=4, le=18)
+    hog_clip: float = param(0.2, gt=0, le=1)
     colour: bool = True
-    colour_weight: float = 3.0
+    colour_weight: float = param(3.0, ge=0)
     balance_groups: bool = True
-    intensity_clip: float = 2.5
+    intensity_clip: float = param(2.5, ge=0)
     visible_gradients: bool = True
     infrared: bool = True
     scale_filter: bool = True
-    scale_channels: str = "infrared"
-    scale_count: int = 13
-    scale_step: float = 1.03
-    scale_template_px: int = 32
-    scale_learning_rate: float = 0.025
-    max_scale_change: float = 1.1
-    update_every_frames: int = 1
-    scale_every_frames: int = 1
-
-    def __post_init__(self) -> None:
-        checks = [
-            (2 <= self.cell_px <= 8, "cell_px must be in [2, 8]"),
-            (0.5 <= self.padding <= 4, "padding must be in [0.5, 4]"),
-            (8 <= self.template_cells <= 64, "template_cells must be in [8, 64]"),
-            (self.lambda_reg > 0, "lambda_reg must be > 0"),
-            (self.colour_weight >= 0, "colour_weight must be >= 0"),
-            (self.scale_channels in ("infrared", "visible", "both"), "scale_channels must be infrared, visible or both"),
-            (self.intensity_clip >= 0, "intensity_clip must be >= 0"),
-            (0 < self.label_sigma_factor <= 1, "label_sigma_factor must be in (0, 1]"),
-            (0 <= self.learning_rate <= 1, "learning_rate must be in [0, 1]"),
-            (4 <= self.hog_bins <= 18, "hog_bins must be in [4, 18]"),
-            (0 < self.hog_clip <= 1, "hog_clip must be in (0, 1]"),
-            (3 <= self.scale_count <= 33 and self.scale_count % 2 == 1, "scale_count must be odd, in [3, 33]"),
-            (1 < self.scale_step <= 1.2, "scale_step must be in (1, 1.2]"),
-            (16 <= self.scale_template_px <= 64, "scale_template_px must be in [16, 64]"),
-            (0 <= self.scale_learning_rate <= 1, "scale_learning_rate must be in [0, 1]"),
-            (self.max_scale_change > 1, "max_scale_change must be > 1"),
-            (isinstance(self.update_every_frames, int) and self.update_every_frames >= 1,
-             "update_every_frames must be an integer >= 1"),
-            (isinstance(self.scale_every_frames, int) and self.scale_every_frames >= 1,
-             "scale_every_frames must be an integer >= 1"),
-        ]
-        for ok, msg in checks:
-            if not ok:
-                raise ValueError(f"appearance.{msg}; got {self!r}")
+    scale_channels: str = param("infrared", choices=("infrared", "visible", "both"))
+    scale_count: int = param(13, ge=3, le=33, odd=True)
+    scale_step: float = param(1.03, gt=1, le=1.2)
+    scale_template_px: int = param(32, ge=16, le=64)
+    scale_learning_rate: float = param(0.025, ge=0, le=1)
+    max_scale_change: float = param(1.1, gt=1)
+    update_every_frames: int = param(1, ge=1)
+    scale_every_frames: int = param(1, ge=1)
 
 
 # ---------------------------------------------------------------------------------------------- features

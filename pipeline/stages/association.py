@@ -25,11 +25,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from pipeline.params import Section, param
+
 IMPOSSIBLE = 1e9
 
 
 @dataclass(frozen=True)
-class AssociationConfig:
+class AssociationConfig(Section):
     """Association of detections to tracks.
 
     Parameters
@@ -51,7 +53,7 @@ class AssociationConfig:
     confirm_hits : int
         A new track is confirmed after this many detections (M of M-of-N), >= 1; default 3.
     confirm_window : int
-        ... within its first this many frames (N), >= confirm_hits; default 5.
+        ... within its first this many frames (N), >= 1 and >= ``confirm_hits``; default 5.
     max_misses : int
         A confirmed track is lost after this many frames without a detection, >= 1; default 30.
     max_merged_frames : int
@@ -68,38 +70,27 @@ class AssociationConfig:
         neither (crossing3 IDF1 0.993 without the split, 0.666 with it).
     """
 
-    detection_probability: float = 0.9
-    false_alarm_probability: float = 1e-4
-    gate_chi2: float = 13.8
+    section = "association"
+
+    detection_probability: float = param(0.9, gt=0, lt=1)
+    false_alarm_probability: float = param(1e-4, gt=0)
+    gate_chi2: float = param(13.8, gt=0)
     use_image: bool = True
     use_state: bool = True
-    associator: str = "hungarian"
-    confirm_hits: int = 3
-    confirm_window: int = 5
-    max_misses: int = 30
-    max_merged_frames: int = 90
-    position_noise: float = 0.5
-    position_std_px: float = 2.0
+    associator: str = param("hungarian", choices=("hungarian", "chnn"))
+    confirm_hits: int = param(3, ge=1)
+    confirm_window: int = param(5, ge=1)
+    max_misses: int = param(30, ge=1)
+    max_merged_frames: int = param(90, ge=1)
+    position_noise: float = param(0.5, gt=0)
+    position_std_px: float = param(2.0, gt=0)
     split_touching: bool = False
 
-    def __post_init__(self) -> None:
-        if not 0 < self.detection_probability < 1:
-            raise ValueError(f"association.detection_probability must be in (0, 1); got {self.detection_probability!r}")
-        if not self.false_alarm_probability > 0:
-            raise ValueError(f"association.false_alarm_probability must be > 0; got {self.false_alarm_probability!r}")
-        if not self.gate_chi2 > 0:
-            raise ValueError(f"association.gate_chi2 must be > 0; got {self.gate_chi2!r}")
+    def check(self) -> None:
         if not (self.use_image or self.use_state):
             raise ValueError("association needs use_image or use_state")
-        if self.associator not in ("hungarian", "chnn"):
-            raise ValueError(f"association.associator must be hungarian or chnn; got {self.associator!r}")
-        if not (isinstance(self.confirm_hits, int) and isinstance(self.confirm_window, int)
-                and 1 <= self.confirm_hits <= self.confirm_window):
+        if not self.confirm_hits <= self.confirm_window:
             raise ValueError("association.confirm_hits must be an integer in [1, confirm_window]")
-        if not (self.position_noise > 0 and self.position_std_px > 0):
-            raise ValueError("association.position_noise and association.position_std_px must be > 0")
-        if not (isinstance(self.max_misses, int) and self.max_misses >= 1):
-            raise ValueError(f"association.max_misses must be an integer >= 1; got {self.max_misses!r}")
 
 
 @dataclass(frozen=True)

@@ -29,13 +29,14 @@ import cv2
 import numba
 import numpy as np
 
+from pipeline.params import Section, param
 from pipeline.stages import levelset
 from pipeline.stages.levelset import LevelSetConfig, box_step, edge_map, evolve
 from pipeline.types import BBox, Points
 
 
 @dataclass(frozen=True)
-class ContourConfig:
+class ContourConfig(Section):
     """Region, initialisation and failure tests of the contour stage.
 
     Parameters
@@ -79,39 +80,19 @@ class ContourConfig:
         target and starts to bridge a gap to a neighbour.
     """
 
-    roi_margin_px: float = 10.0
-    roi_margin_fraction: float = 0.35
-    cold_start_scale: float = 1.35
-    warm_start: bool = True
-    warm_dilate_px: float = 3.0
-    min_area_fraction: float = 0.3
-    max_area_ratio: float = 2.2
-    min_contrast: float = 6.0
-    part_fraction: float = 0.6
-    max_dimension_ratio: float = 1.45
-    closing_fraction: float = 0.25
+    section = "contour"
 
-    def __post_init__(self) -> None:
-        if not self.roi_margin_px >= 4:
-            raise ValueError(f"contour.roi_margin_px must be >= 4; got {self.roi_margin_px!r}")
-        if not 0 <= self.roi_margin_fraction <= 2:
-            raise ValueError(f"contour.roi_margin_fraction must be in [0, 2]; got {self.roi_margin_fraction!r}")
-        if not self.warm_dilate_px >= 0:
-            raise ValueError(f"contour.warm_dilate_px must be >= 0; got {self.warm_dilate_px!r}")
-        if not 1 <= self.cold_start_scale <= 2:
-            raise ValueError(f"contour.cold_start_scale must be in [1, 2]; got {self.cold_start_scale!r}")
-        if not 0 < self.min_area_fraction < 1:
-            raise ValueError(f"contour.min_area_fraction must be in (0, 1); got {self.min_area_fraction!r}")
-        if not self.max_area_ratio > 1:
-            raise ValueError(f"contour.max_area_ratio must be > 1; got {self.max_area_ratio!r}")
-        if not self.min_contrast >= 0:
-            raise ValueError(f"contour.min_contrast must be >= 0; got {self.min_contrast!r}")
-        if not self.max_dimension_ratio > 1:
-            raise ValueError(f"contour.max_dimension_ratio must be > 1; got {self.max_dimension_ratio!r}")
-        if not 0 <= self.closing_fraction <= 1:
-            raise ValueError(f"contour.closing_fraction must be in [0, 1]; got {self.closing_fraction!r}")
-        if not 0 < self.part_fraction <= 1:
-            raise ValueError(f"contour.part_fraction must be in (0, 1]; got {self.part_fraction!r}")
+    roi_margin_px: float = param(10.0, ge=4)
+    roi_margin_fraction: float = param(0.35, ge=0, le=2)
+    cold_start_scale: float = param(1.35, ge=1, le=2)
+    warm_start: bool = True
+    warm_dilate_px: float = param(3.0, ge=0)
+    min_area_fraction: float = param(0.3, gt=0, lt=1)
+    max_area_ratio: float = param(2.2, gt=1)
+    min_contrast: float = param(6.0, ge=0)
+    part_fraction: float = param(0.6, gt=0, le=1)
+    max_dimension_ratio: float = param(1.45, gt=1)
+    closing_fraction: float = param(0.25, ge=0, le=1)
 
 
 @dataclass(frozen=True)

@@ -31,11 +31,12 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from pipeline.params import Section, param
 from pipeline.types import BBox
 
 
 @dataclass(frozen=True)
-class DetectionConfig:
+class DetectionConfig(Section):
     """STDM detection and ROI discrimination.
 
     Parameters
@@ -116,64 +117,34 @@ class DetectionConfig:
         under it).
     """
 
-    channel: str = "infrared"
-    method: str = "foreground"
-    background_fraction: float = 0.5
-    background_step: float = 1.0
-    foreground_k: float = 4.0
-    foreground_min_contrast: float = 5.0
-    jitter_px: int = 1
-    fuse_visible: bool = False
-    window_px: int = 7
-    threshold: str = "global"
-    threshold_window_px: int = 61
-    k_sigma: float = 10.0
-    min_std: float = 4.0
-    open_px: int = 3
-    close_px: int = 7
-    min_area_px: int = 40
-    perimeter_px: tuple[float, float] = (40.0, 900.0)
-    max_aspect: float = 5.0
-    max_complexity: float = 5.0
-    split_core_fraction: float = 0.7
-    split_min_core_px: int = 10
+    section = "detection"
 
-    def __post_init__(self) -> None:
-        if self.threshold not in ("global", "local"):
-            raise ValueError(f"detection.threshold must be global or local; got {self.threshold!r}")
-        if self.channel not in ("infrared", "visible"):
-            raise ValueError(f"detection.channel must be infrared or visible; got {self.channel!r}")
-        if self.method not in ("foreground", "stdm"):
-            raise ValueError(f"detection.method must be foreground or stdm; got {self.method!r}")
-        if not 0 < self.background_fraction <= 1:
-            raise ValueError(f"detection.background_fraction must be in (0, 1]; got {self.background_fraction!r}")
-        if not self.background_step > 0:
-            raise ValueError(f"detection.background_step must be > 0; got {self.background_step!r}")
-        for name in ("foreground_k", "foreground_min_contrast"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"detection.{name} must be >= 0; got {getattr(self, name)!r}")
-        if not (isinstance(self.jitter_px, int) and 0 <= self.jitter_px <= 5):
-            raise ValueError(f"detection.jitter_px must be an integer in [0, 5]; got {self.jitter_px!r}")
-        for name, lo, hi in (("window_px", 3, 31), ("threshold_window_px", 9, 255)):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and lo <= v <= hi and v % 2 == 1):
-                raise ValueError(f"detection.{name} must be an odd integer in [{lo}, {hi}]; got {v!r}")
-        for name in ("k_sigma", "min_std"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"detection.{name} must be >= 0; got {getattr(self, name)!r}")
-        for name in ("open_px", "close_px", "min_area_px"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 1):
-                raise ValueError(f"detection.{name} must be an integer >= 1; got {v!r}")
+    channel: str = param("infrared", choices=("infrared", "visible"))
+    method: str = param("foreground", choices=("foreground", "stdm"))
+    background_fraction: float = param(0.5, gt=0, le=1)
+    background_step: float = param(1.0, gt=0)
+    foreground_k: float = param(4.0, ge=0)
+    foreground_min_contrast: float = param(5.0, ge=0)
+    jitter_px: int = param(1, ge=0, le=5)
+    fuse_visible: bool = False
+    window_px: int = param(7, ge=3, le=31, odd=True)
+    threshold: str = param("global", choices=("global", "local"))
+    threshold_window_px: int = param(61, ge=9, le=255, odd=True)
+    k_sigma: float = param(10.0, ge=0)
+    min_std: float = param(4.0, ge=0)
+    open_px: int = param(3, ge=1)
+    close_px: int = param(7, ge=1)
+    min_area_px: int = param(40, ge=1)
+    perimeter_px: tuple[float, float] = (40.0, 900.0)
+    max_aspect: float = param(5.0, ge=1)
+    max_complexity: float = param(5.0, ge=1)
+    split_core_fraction: float = param(0.7, ge=0, lt=1)
+    split_min_core_px: int = param(10, ge=1)
+
+    def check(self) -> None:
         lo, hi = self.perimeter_px
         if not 0 <= lo < hi:
             raise ValueError(f"detection.perimeter_px must be (min, max) with 0 <= min < max; got {self.perimeter_px!r}")
-        if not self.max_aspect >= 1 or not self.max_complexity >= 1:
-            raise ValueError("detection.max_aspect and detection.max_complexity must be >= 1")
-        if not 0 <= self.split_core_fraction < 1:
-            raise ValueError(f"detection.split_core_fraction must be in [0, 1); got {self.split_core_fraction!r}")
-        if not (isinstance(self.split_min_core_px, int) and self.split_min_core_px >= 1):
-            raise ValueError(f"detection.split_min_core_px must be an integer >= 1; got {self.split_min_core_px!r}")
 
 
 class RegionReason(enum.StrEnum):

@@ -21,11 +21,12 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeline.params import Section, param
 from pipeline.types import BBox
 
 
 @dataclass(frozen=True)
-class HistogramConfig:
+class HistogramConfig(Section):
     """Binning of the appearance histograms.
 
     Parameters
@@ -44,21 +45,13 @@ class HistogramConfig:
         default 32. Increasing it sharpens the model but makes it noisier.
     """
 
-    hue_bins: int = 16
-    saturation_bins: int = 4
-    value_bins: int = 4
-    intensity_bins: int = 32
+    section = "histogram"
 
-    def __post_init__(self) -> None:
-        for name, lo, hi in (
-            ("hue_bins", 2, 180),
-            ("saturation_bins", 1, 256),
-            ("value_bins", 1, 256),
-            ("intensity_bins", 2, 256),
-        ):
-            v = getattr(self, name)
-            if not isinstance(v, int) or not lo <= v <= hi:
-                raise ValueError(f"histogram.{name} must be an integer in [{lo}, {hi}]; got {v!r}")
+    hue_bins: int = param(16, ge=2, le=180)
+    saturation_bins: int = param(4, ge=1, le=256)
+    value_bins: int = param(4, ge=1, le=256)
+    intensity_bins: int = param(32, ge=2, le=256)
+
 
     @property
     def hsv_bins(self) -> int:

@@ -28,11 +28,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from pipeline.params import Section, param
 from pipeline.types import BBox
 
 
 @dataclass(frozen=True)
-class KalmanConfig:
+class KalmanConfig(Section):
     """Motion model and noise of the Kalman stage.
 
     Parameters
@@ -67,30 +68,20 @@ class KalmanConfig:
         Largest inflation factor, >= 1; default 100.
     """
 
-    model: str = "constant_acceleration"
-    dt_frames: float = 1.0
-    position_noise: float = 0.01
-    size_noise: float = 0.005
-    position_std_px: float = 3.0
-    size_std_px: float = 5.0
-    initial_velocity_std_px_per_frame: float = 5.0
-    initial_acceleration_std_px_per_frame2: float = 1.0
-    maneuver_adaptive: bool = False
-    maneuver_sigma: float = 3.0
-    maneuver_cap: float = 100.0
+    section = "kalman"
 
-    def __post_init__(self) -> None:
-        if self.model not in ("constant_acceleration", "constant_velocity"):
-            raise ValueError(f"kalman.model must be 'constant_acceleration' or 'constant_velocity'; got {self.model!r}")
-        for name in ("dt_frames", "position_noise", "size_noise", "position_std_px", "size_std_px",
-                     "initial_velocity_std_px_per_frame", "initial_acceleration_std_px_per_frame2"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and v > 0):
-                raise ValueError(f"kalman.{name} must be > 0; got {v!r}")
-        if not self.maneuver_sigma > 0:
-            raise ValueError(f"kalman.maneuver_sigma must be > 0; got {self.maneuver_sigma!r}")
-        if not self.maneuver_cap >= 1:
-            raise ValueError(f"kalman.maneuver_cap must be >= 1; got {self.maneuver_cap!r}")
+    model: str = param("constant_acceleration", choices=("constant_acceleration", "constant_velocity"))
+    dt_frames: float = param(1.0, gt=0)
+    position_noise: float = param(0.01, gt=0)
+    size_noise: float = param(0.005, gt=0)
+    position_std_px: float = param(3.0, gt=0)
+    size_std_px: float = param(5.0, gt=0)
+    initial_velocity_std_px_per_frame: float = param(5.0, gt=0)
+    initial_acceleration_std_px_per_frame2: float = param(1.0, gt=0)
+    maneuver_adaptive: bool = False
+    maneuver_sigma: float = param(3.0, gt=0)
+    maneuver_cap: float = param(100.0, ge=1)
+
 
     @property
     def order(self) -> int:

@@ -33,9 +33,11 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeline.params import Section, param
+
 
 @dataclass(frozen=True)
-class LevelSetConfig:
+class LevelSetConfig(Section):
     """DRLSE parameters (docs/algorithms.md §0 and §1.5-1.7 give the defaults' sources).
 
     Parameters
@@ -70,8 +72,8 @@ class LevelSetConfig:
         Beyond the paper: kappa = max(edge_scale, 3 x the median gradient magnitude of
         the ROI), so that noise alone never looks like an edge; default True.
     step_height : float
-        c0 of the binary-step initialisation (phi = -c0 inside, +c0 outside), > dirac
-        width; default 2.
+        c0 of the binary-step initialisation (phi = -c0 inside, +c0 outside), > 0 and
+        > ``dirac_width``; default 2.
     max_iterations_cold : int
         Iteration cap from a binary step, >= 1; default 300.
     max_iterations_warm : int
@@ -84,62 +86,47 @@ class LevelSetConfig:
     check_every : int
         Iterations between two checks of the stopping rule, >= 1; default 5.
     stop_window : int
-        The area is compared with its value this many iterations earlier, >= check_every;
-        default 10.
+        The area is compared with its value this many iterations earlier, >= 1
+        and >= ``check_every``; default 10.
     stop_tolerance : float
         Relative area change below which the evolution has converged, in (0, 1);
         default 0.002 (0.2 %), at least one pixel.
     band_px : float
         Narrow band: pixels with |phi| below this or a sign change to a neighbour, and
-        their 1-pixel neighbourhood, are updated, px, > dirac width; default 1.9 (just
+        their 1-pixel neighbourhood, are updated, px, > 0 and > ``dirac_width``; default 1.9 (just
         under c0, so the flat +-c0 regions are skipped until the front reaches them).
     """
 
-    timestep: float = 5.0
-    distance_weight: float = 0.04
-    length_weight: float = 5.0
-    area_weight: float = 0.6
-    area_weight_warm: float = 0.6
-    dirac_width: float = 1.5
-    smoothing_sigma_px: float = 0.8
-    edge_scale: float = 1.0
-    edge_scale_auto: bool = True
-    step_height: float = 2.0
-    max_iterations_cold: int = 300
-    max_iterations_warm: int = 15
-    refine_iterations: int = 5
-    check_every: int = 5
-    stop_window: int = 10
-    stop_tolerance: float = 0.002
-    band_px: float = 1.9
+    section = "levelset"
 
-    def __post_init__(self) -> None:
-        if not 0 < self.timestep <= 10:
-            raise ValueError(f"levelset.timestep must be in (0, 10]; got {self.timestep!r}")
-        if not self.distance_weight > 0:
-            raise ValueError(f"levelset.distance_weight must be > 0; got {self.distance_weight!r}")
+    timestep: float = param(5.0, gt=0, le=10)
+    distance_weight: float = param(0.04, gt=0)
+    length_weight: float = param(5.0, ge=0)
+    area_weight: float = param(0.6)
+    area_weight_warm: float = param(0.6)
+    dirac_width: float = param(1.5, gt=0)
+    smoothing_sigma_px: float = param(0.8, gt=0)
+    edge_scale: float = param(1.0, gt=0)
+    edge_scale_auto: bool = True
+    step_height: float = param(2.0, gt=0)
+    max_iterations_cold: int = param(300, ge=1)
+    max_iterations_warm: int = param(15, ge=1)
+    refine_iterations: int = param(5, ge=0)
+    check_every: int = param(5, ge=1)
+    stop_window: int = param(10, ge=1)
+    stop_tolerance: float = param(0.002, gt=0, lt=1)
+    band_px: float = param(1.9, gt=0)
+
+    def check(self) -> None:
         if not self.distance_weight * self.timestep < 0.25:
             raise ValueError(
                 "levelset.distance_weight x levelset.timestep must be < 0.25 for stability; got "
                 f"{self.distance_weight} x {self.timestep} = {self.distance_weight * self.timestep:g}"
             )
-        if self.length_weight < 0:
-            raise ValueError(f"levelset.length_weight must be >= 0; got {self.length_weight!r}")
-        for name in ("dirac_width", "smoothing_sigma_px", "edge_scale"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"levelset.{name} must be > 0; got {getattr(self, name)!r}")
         if not self.step_height > self.dirac_width:
             raise ValueError("levelset.step_height must exceed levelset.dirac_width")
-        for name in ("max_iterations_cold", "max_iterations_warm", "check_every"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 1):
-                raise ValueError(f"levelset.{name} must be an integer >= 1; got {v!r}")
-        if not (isinstance(self.refine_iterations, int) and self.refine_iterations >= 0):
-            raise ValueError(f"levelset.refine_iterations must be an integer >= 0; got {self.refine_iterations!r}")
-        if not (isinstance(self.stop_window, int) and self.stop_window >= self.check_every):
+        if not self.stop_window >= self.check_every:
             raise ValueError("levelset.stop_window must be an integer >= levelset.check_every")
-        if not 0 < self.stop_tolerance < 1:
-            raise ValueError(f"levelset.stop_tolerance must be in (0, 1); got {self.stop_tolerance!r}")
         if not self.band_px > self.dirac_width:
             raise ValueError("levelset.band_px must exceed levelset.dirac_width")
 

@@ -15,11 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from pipeline.params import Section, param
 from pipeline.stages.histogram import bhattacharyya, ellipse_model, ellipse_shift
 
 
 @dataclass(frozen=True)
-class MeanShiftConfig:
+class MeanShiftConfig(Section):
     """Mean-shift iteration and scale search.
 
     Parameters
@@ -50,29 +51,15 @@ class MeanShiftConfig:
         grows with the area examined.
     """
 
-    max_iterations: int = 20
-    epsilon_px: float = 0.2
-    max_halvings: int = 6
-    scale_step: float = 0.1
-    scale_rate: float = 0.1
-    min_mass_fraction: float = 0.5
-    search_margin: float = 1.5
+    section = "meanshift"
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.max_iterations, int) or self.max_iterations < 1:
-            raise ValueError(f"meanshift.max_iterations must be an integer >= 1; got {self.max_iterations!r}")
-        if not 0 < self.epsilon_px <= 5:
-            raise ValueError(f"meanshift.epsilon_px must be in (0, 5] px; got {self.epsilon_px!r}")
-        if not isinstance(self.max_halvings, int) or self.max_halvings < 0:
-            raise ValueError(f"meanshift.max_halvings must be an integer >= 0; got {self.max_halvings!r}")
-        if not 0 <= self.scale_step <= 0.5:
-            raise ValueError(f"meanshift.scale_step must be in [0, 0.5]; got {self.scale_step!r}")
-        if not 0 <= self.scale_rate <= 1:
-            raise ValueError(f"meanshift.scale_rate must be in [0, 1]; got {self.scale_rate!r}")
-        if not 0 <= self.min_mass_fraction <= 1:
-            raise ValueError(f"meanshift.min_mass_fraction must be in [0, 1]; got {self.min_mass_fraction!r}")
-        if not 0.5 <= self.search_margin <= 5:
-            raise ValueError(f"meanshift.search_margin must be in [0.5, 5]; got {self.search_margin!r}")
+    max_iterations: int = param(20, ge=1)
+    epsilon_px: float = param(0.2, gt=0, le=5)
+    max_halvings: int = param(6, ge=0)
+    scale_step: float = param(0.1, ge=0, le=0.5)
+    scale_rate: float = param(0.1, ge=0, le=1)
+    min_mass_fraction: float = param(0.5, ge=0, le=1)
+    search_margin: float = param(1.5, ge=0.5, le=5)
 
 
 @dataclass(frozen=True)

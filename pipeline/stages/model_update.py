@@ -29,9 +29,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.params import Section, param
+
 
 @dataclass(frozen=True)
-class ModelUpdateConfig:
+class ModelUpdateConfig(Section):
     """Selective sub-model update.
 
     Parameters
@@ -54,24 +56,14 @@ class ModelUpdateConfig:
         default 0.8 (docs/algorithms.md §3). Increasing it updates less often and more safely.
     """
 
-    enabled: bool = True
-    model_rate: float = 0.1
-    rank_rule: str = "cumulative"
-    rank_mass: float = 0.8
-    rank_count: int = 16
-    min_rho: float = 0.8
+    section = "model_update"
 
-    def __post_init__(self) -> None:
-        if not 0 <= self.model_rate <= 1:
-            raise ValueError(f"model_update.model_rate must be in [0, 1]; got {self.model_rate!r}")
-        if self.rank_rule not in ("cumulative", "count", "above_average"):
-            raise ValueError(f"model_update.rank_rule must be cumulative, count or above_average; got {self.rank_rule!r}")
-        if not 0 < self.rank_mass <= 1:
-            raise ValueError(f"model_update.rank_mass must be in (0, 1]; got {self.rank_mass!r}")
-        if not (isinstance(self.rank_count, int) and self.rank_count >= 0):
-            raise ValueError(f"model_update.rank_count must be an integer >= 0; got {self.rank_count!r}")
-        if not 0 <= self.min_rho <= 1:
-            raise ValueError(f"model_update.min_rho must be in [0, 1]; got {self.min_rho!r}")
+    enabled: bool = True
+    model_rate: float = param(0.1, ge=0, le=1)
+    rank_rule: str = param("cumulative", choices=("cumulative", "count", "above_average"))
+    rank_mass: float = param(0.8, gt=0, le=1)
+    rank_count: int = param(16, ge=0)
+    min_rho: float = param(0.8, ge=0, le=1)
 
 
 def matching_contribution(p: np.ndarray, q: np.ndarray) -> np.ndarray:

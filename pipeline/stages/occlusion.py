@@ -16,9 +16,11 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
+from pipeline.params import Section, param
+
 
 @dataclass(frozen=True)
-class OcclusionConfig:
+class OcclusionConfig(Section):
     """Occlusion grading (Kalman-CAMShift paper).
 
     Parameters
@@ -72,42 +74,24 @@ class OcclusionConfig:
         lost at once.
     """
 
-    distance_threshold: float = 0.4
-    max_area_growth: float = 2.0
-    min_area_fraction: float = 0.4
-    reference_frames: int = 20
-    max_severe_frames: int = 50
-    search_scale: float = 1.5
-    missing_search_scale: float = 3.0
-    reacquire_distance: float = 0.3
-    rewind_frames: int = 8
-    history_frames: int = 16
-    size_change_occludes: bool = True
-    max_missing_frames: int = 100
+    section = "occlusion"
 
-    def __post_init__(self) -> None:
-        if not 0 < self.distance_threshold <= 1:
-            raise ValueError(f"occlusion.distance_threshold must be in (0, 1]; got {self.distance_threshold!r}")
-        if not self.max_area_growth > 1:
-            raise ValueError(f"occlusion.max_area_growth must be > 1; got {self.max_area_growth!r}")
-        if not 0 < self.min_area_fraction <= 1:
-            raise ValueError(f"occlusion.min_area_fraction must be in (0, 1]; got {self.min_area_fraction!r}")
-        if not (isinstance(self.reference_frames, int) and self.reference_frames >= 1):
-            raise ValueError(f"occlusion.reference_frames must be an integer >= 1; got {self.reference_frames!r}")
-        if not (isinstance(self.max_severe_frames, int) and self.max_severe_frames >= 1):
-            raise ValueError(f"occlusion.max_severe_frames must be an integer >= 1; got {self.max_severe_frames!r}")
-        if not 1 <= self.search_scale <= 5:
-            raise ValueError(f"occlusion.search_scale must be in [1, 5]; got {self.search_scale!r}")
-        if not 1 <= self.missing_search_scale <= 10:
-            raise ValueError(f"occlusion.missing_search_scale must be in [1, 10]; got {self.missing_search_scale!r}")
-        if not 0 < self.reacquire_distance <= self.distance_threshold:
+    distance_threshold: float = param(0.4, gt=0, le=1)
+    max_area_growth: float = param(2.0, gt=1)
+    min_area_fraction: float = param(0.4, gt=0, le=1)
+    reference_frames: int = param(20, ge=1)
+    max_severe_frames: int = param(50, ge=1)
+    search_scale: float = param(1.5, ge=1, le=5)
+    missing_search_scale: float = param(3.0, ge=1, le=10)
+    reacquire_distance: float = param(0.3, gt=0, le=1)
+    rewind_frames: int = param(8, ge=0, le=30)
+    history_frames: int = param(16, ge=2, le=100)
+    size_change_occludes: bool = True
+    max_missing_frames: int = param(100, ge=1)
+
+    def check(self) -> None:
+        if not self.reacquire_distance <= self.distance_threshold:
             raise ValueError(f"occlusion.reacquire_distance must be in (0, distance_threshold]; got {self.reacquire_distance!r}")
-        if not (isinstance(self.history_frames, int) and 2 <= self.history_frames <= 100):
-            raise ValueError(f"occlusion.history_frames must be an integer in [2, 100]; got {self.history_frames!r}")
-        if not (isinstance(self.max_missing_frames, int) and self.max_missing_frames >= 1):
-            raise ValueError(f"occlusion.max_missing_frames must be an integer >= 1; got {self.max_missing_frames!r}")
-        if not (isinstance(self.rewind_frames, int) and 0 <= self.rewind_frames <= 30):
-            raise ValueError(f"occlusion.rewind_frames must be an integer in [0, 30]; got {self.rewind_frames!r}")
 
 
 class Grade(enum.StrEnum):

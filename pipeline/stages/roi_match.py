@@ -28,9 +28,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from pipeline.params import Section, param
+
 
 @dataclass(frozen=True)
-class RoiMatchConfig:
+class RoiMatchConfig(Section):
     """ROI image matching.
 
     Parameters
@@ -73,42 +75,21 @@ class RoiMatchConfig:
         Strongest-gradient points of each chip used by GAT, >= 16; default 250.
     """
 
-    method: str = "ecc"
-    chip_px: int = 48
-    margin_fraction: float = 0.25
-    pad_px: int = 8
-    ecc_iterations: int = 50
-    ecc_epsilon: float = 1e-4
-    gauss_filter_px: int = 5
-    min_correlation: float = 0.0
-    sharpness: float = 0.0
-    likelihood_floor: float = 0.01
-    max_scale_change: float = 0.5
-    gat_iterations: int = 12
-    gat_points: int = 250
+    section = "roi_match"
 
-    def __post_init__(self) -> None:
-        if self.method not in ("ecc", "gat"):
-            raise ValueError(f"roi_match.method must be ecc or gat; got {self.method!r}")
-        if not (isinstance(self.chip_px, int) and 16 <= self.chip_px <= 128):
-            raise ValueError(f"roi_match.chip_px must be an integer in [16, 128]; got {self.chip_px!r}")
-        if not (isinstance(self.pad_px, int) and 2 <= self.pad_px <= 32):
-            raise ValueError(f"roi_match.pad_px must be an integer in [2, 32]; got {self.pad_px!r}")
-        if not 0 <= self.margin_fraction <= 1:
-            raise ValueError(f"roi_match.margin_fraction must be in [0, 1]; got {self.margin_fraction!r}")
-        if not (isinstance(self.gauss_filter_px, int) and self.gauss_filter_px >= 1 and self.gauss_filter_px % 2 == 1):
-            raise ValueError(f"roi_match.gauss_filter_px must be an odd integer >= 1; got {self.gauss_filter_px!r}")
-        if not 0 < self.likelihood_floor < 1:
-            raise ValueError(f"roi_match.likelihood_floor must be in (0, 1); got {self.likelihood_floor!r}")
-        for name in ("ecc_iterations", "gat_iterations"):
-            if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
-                raise ValueError(f"roi_match.{name} must be an integer >= 1; got {getattr(self, name)!r}")
-        if not (isinstance(self.gat_points, int) and self.gat_points >= 16):
-            raise ValueError(f"roi_match.gat_points must be an integer >= 16; got {self.gat_points!r}")
-        if not self.sharpness >= 0:
-            raise ValueError(f"roi_match.sharpness must be >= 0; got {self.sharpness!r}")
-        if not self.ecc_epsilon > 0 or not self.max_scale_change > 0:
-            raise ValueError("roi_match.ecc_epsilon and roi_match.max_scale_change must be > 0")
+    method: str = param("ecc", choices=("ecc", "gat"))
+    chip_px: int = param(48, ge=16, le=128)
+    margin_fraction: float = param(0.25, ge=0, le=1)
+    pad_px: int = param(8, ge=2, le=32)
+    ecc_iterations: int = param(50, ge=1)
+    ecc_epsilon: float = param(1e-4, gt=0)
+    gauss_filter_px: int = param(5, ge=1, odd=True)
+    min_correlation: float = param(0.0, ge=-1, le=1)
+    sharpness: float = param(0.0, ge=0)
+    likelihood_floor: float = param(0.01, gt=0, lt=1)
+    max_scale_change: float = param(0.5, gt=0)
+    gat_iterations: int = param(12, ge=1)
+    gat_points: int = param(250, ge=16)
 
 
 @dataclass(frozen=True)

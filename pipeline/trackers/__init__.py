@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from pipeline.config import PipelineConfig
 from pipeline.errors import InputError
 from pipeline.stages import appearance, contour, histogram
 from pipeline.trackers import detect as _detect
@@ -14,11 +15,11 @@ from pipeline.trackers.base import Engine, FunctionalEngine
 from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
 
 
-def _engine(name: str, init: Callable, step: Callable, *warm_ups: Callable[[], None]) -> Callable[[object], Engine]:
+def _engine(name: str, init: Callable, step: Callable, *warm_ups: Callable[[], None]) -> Callable[[PipelineConfig], Engine]:
     """Factory of a functional engine that first compiles or loads its numba kernels (``warm_ups``, once
     per process), so that the tracker's first timed frame does not pay for them."""
 
-    def make(cfg: object) -> Engine:
+    def make(cfg: PipelineConfig) -> Engine:
         for warm_up in warm_ups:
             warm_up()
         return FunctionalEngine(name, init, step, cfg)
@@ -26,15 +27,15 @@ def _engine(name: str, init: Callable, step: Callable, *warm_ups: Callable[[], N
     return make
 
 
-_FACTORIES: dict[str, Callable[[object], Engine]] = {
+_FACTORIES: dict[str, Callable[[PipelineConfig], Engine]] = {
     "dual": _engine("dual", _dual.init, _dual.step, histogram.warm_up, contour.warm_up, appearance.warm_up),
     "meanshift": _engine("meanshift", _meanshift.init, _meanshift.step, histogram.warm_up),
     "kalman-camshift": _engine("kalman-camshift", _kc.init, _kc.step, histogram.warm_up),
     "detect": lambda cfg: FunctionalEngine("detect", _detect.init, _detect.step, cfg),
-    "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),  # type: ignore[attr-defined]
-    "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),  # type: ignore[attr-defined]
-    "csrt": lambda cfg: OpenCVEngine("csrt", cfg.opencv),  # type: ignore[attr-defined]
-    "kcf": lambda cfg: OpenCVEngine("kcf", cfg.opencv),  # type: ignore[attr-defined]
+    "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),
+    "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),
+    "csrt": lambda cfg: OpenCVEngine("csrt", cfg.opencv),
+    "kcf": lambda cfg: OpenCVEngine("kcf", cfg.opencv),
 }
 PEERS = ("camshift", "mil", "csrt", "kcf")
 NEEDS_NO_INIT = ("detect",)
@@ -51,11 +52,11 @@ def available_trackers() -> list[str]:
     return [n for n in _FACTORIES if n not in ("csrt", "kcf") or opencv_tracker_available(n)]
 
 
-def register(name: str, factory: Callable[[object], Engine]) -> None:
+def register(name: str, factory: Callable[[PipelineConfig], Engine]) -> None:
     _FACTORIES[name] = factory
 
 
-def make_tracker(name: str, cfg: object) -> Engine:
+def make_tracker(name: str, cfg: PipelineConfig) -> Engine:
     """Build the engine ``name`` with the resolved ``PipelineConfig``."""
     factory = _FACTORIES.get(name)
     if factory is None:

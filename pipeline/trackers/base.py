@@ -4,7 +4,7 @@ An engine is started on the first frame pair with the initial targets and then s
 once per frame pair; both return a :class:`~pipeline.types.FrameResult` with one
 :class:`~pipeline.types.TargetResult` per target (box, status, diagnostics)::
 
-    engine = make_tracker("dual", cfg, seq.channels)
+    engine = make_tracker("dual", cfg)
     first = engine.start(frames_1, init_targets)
     for frames in rest:
         result = engine.step(frames)
@@ -18,8 +18,9 @@ sees the same interface as the OpenCV peers (whose state lives inside OpenCV obj
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Generic, Protocol, TypeVar
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.types import FrameResult, InitTarget
 
@@ -45,9 +46,9 @@ class FunctionalEngine(Generic[S]):
     def __init__(
         self,
         name: str,
-        init: Callable[[FramePair, Sequence[InitTarget], Any], tuple[S, FrameResult]],
-        step: Callable[[S, FramePair, Any], tuple[S, FrameResult]],
-        cfg: Any,
+        init: Callable[[FramePair, Sequence[InitTarget], PipelineConfig], tuple[S, FrameResult]],
+        step: Callable[[S, FramePair, PipelineConfig], tuple[S, FrameResult]],
+        cfg: PipelineConfig,
     ):
         self.name = name
         self._init = init

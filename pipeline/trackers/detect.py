@@ -33,12 +33,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
+from pipeline.io.sequence import Sequence as FrameSequence
 from pipeline.stages import kalman
 from pipeline.stages.association import get_associator, state_log_likelihoods
 from pipeline.stages.detection import Background, DetectionConfig, Region, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
-from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
+from pipeline.types import (
+    BBox,
+    Event,
+    EventKind,
+    FrameResult,
+    InitTarget,
+    TargetResult,
+    TargetStatus,
+)
 
 
 @dataclass(frozen=True)
@@ -64,9 +74,9 @@ class DetectState:
     background: Background | None = None  # the detector's background estimate (``detection.method = foreground``)
 
 
-def _kcfg(cfg: object) -> kalman.KalmanConfig:
-    a = cfg.association  # type: ignore[attr-defined]
-    return dataclasses.replace(cfg.kalman, model="constant_velocity", position_noise=a.position_noise,  # type: ignore[attr-defined]
+def _kcfg(cfg: PipelineConfig) -> kalman.KalmanConfig:
+    a = cfg.association
+    return dataclasses.replace(cfg.kalman, model="constant_velocity", position_noise=a.position_noise,
                                size_noise=a.position_noise / 4, position_std_px=a.position_std_px)
 
 
@@ -80,18 +90,18 @@ def _new_track(tid: int, r: Region, grey: np.ndarray, frame: int, kcfg: kalman.K
     return DetTrack(tid, kalman.init_state(r.box, kcfg), r.box, TargetStatus.TENTATIVE, frame, 1, 0, grey, r.box)
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple[DetectState, FrameResult]:
+def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[DetectState, FrameResult]:
     """Start with no tracks (``targets`` are ignored: the detector finds them)."""
-    ch = _channel(frames, cfg.detection.channel)  # type: ignore[attr-defined]
+    ch = _channel(frames, cfg.detection.channel)
     state = DetectState((), 1, ch)
     return step(state, frames, cfg)
 
 
 def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState], regions: Sequence[Region],
-               grey: np.ndarray, cfg: object, timing: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               grey: np.ndarray, cfg: PipelineConfig, timing: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(cost N x M, Λ_I N x M (NaN outside the gate), γ N x M) of every track/detection pair."""
-    a = cfg.association  # type: ignore[attr-defined]
-    rm = cfg.roi_match  # type: ignore[attr-defined]
+    a = cfg.association
+    rm = cfg.roi_match
     kcfg = _kcfg(cfg)
     Hm, Rm = kalman.measurement_model(kcfg)
     n, m = len(tracks), len(regions)
@@ -128,9 +138,9 @@ def _detection_cfg(dcfg: DetectionConfig, split_touching: bool) -> DetectionConf
     return dcfg if split_touching else dataclasses.replace(dcfg, split_core_fraction=0.0)
 
 
-def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectState, FrameResult]:
+def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[DetectState, FrameResult]:
     """One frame: detect, predict, associate, update, manage tracks."""
-    a = cfg.association  # type: ignore[attr-defined]
+    a = cfg.association
     kcfg = _kcfg(cfg)
     F, Q = kalman.motion_model(kcfg)
     Hm, Rm = kalman.measurement_model(kcfg)
@@ -139,7 +149,7 @@ def step(state: DetectState, frames: FramePair, cfg: object) -> tuple[DetectStat
     image = getattr(frames, state.channel)
     grey = to_grey(image)
     H, W = grey.shape
-    found = detect(grey, _detection_cfg(cfg.detection, a.split_touching), state.background,  # type: ignore[attr-defined]
+    found = detect(grey, _detection_cfg(cfg.detection, a.split_touching), state.background,
                    frames.visible if state.channel == "infrared" else None)
     regions = list(found.regions)
     t1 = time.perf_counter()
@@ -266,17 +276,17 @@ def _inside(c: np.ndarray, size: tuple[float, float], blob: BBox) -> tuple[float
     return out[0], out[1]
 
 
-def detect_init(seq: object, cfg: object, frames_to_scan: int = 5) -> list[InitTarget]:
+def detect_init(seq: FrameSequence, cfg: PipelineConfig, frames_to_scan: int = 5) -> list[InitTarget]:
     """Initial targets for another tracker: run the detection-driven tracker over the first
     frames and take the tracks confirmed by then that were detected in frame 1, at their
     frame-1 boxes, with ids 1..N left to right (an InputError when there is none)."""
     from pipeline.errors import InputError
 
     state: DetectState | None = None
-    n = min(frames_to_scan, seq.n_frames)  # type: ignore[attr-defined]
+    n = min(frames_to_scan, seq.n_frames)
     first: dict[int, BBox] = {}
     res = None
-    for fp in seq.frames():  # type: ignore[attr-defined]
+    for fp in seq.frames():
         if fp.index > n:
             break
         state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
@@ -285,6 +295,6 @@ def detect_init(seq: object, cfg: object, frames_to_scan: int = 5) -> list[InitT
     assert state is not None and res is not None
     found = [first[r.id] for r in res.targets if r.status == TargetStatus.TRACKING and r.id in first]
     if not found:
-        raise InputError(f"--detect found no target in frame 1 confirmed within {n} frames of {seq.path}; "  # type: ignore[attr-defined]
+        raise InputError(f"--detect found no target in frame 1 confirmed within {n} frames of {seq.path}; "
                          "pass --init x,y,w,h or tune the [detection] section")
     return [InitTarget(k + 1, b) for k, b in enumerate(sorted(found, key=lambda b: (b.x, b.y)))]

@@ -58,14 +58,37 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
-from pipeline.stages.motion import coast_start, hold_rates, stop
-from pipeline.stages.camshift import back_project, box_mask, camshift, feature, histogram, kernel_masked_histogram, to_hsv
+from pipeline.stages.camshift import (
+    back_project,
+    box_mask,
+    camshift,
+    feature,
+    histogram,
+    kernel_masked_histogram,
+    to_hsv,
+)
 from pipeline.stages.histogram import bhattacharyya, bhattacharyya_distance
-from pipeline.stages.occlusion import AreaReference, Grade, grade_occlusion, is_lost, next_severe_run
+from pipeline.stages.motion import coast_start, hold_rates, stop
+from pipeline.stages.occlusion import (
+    AreaReference,
+    Grade,
+    grade_occlusion,
+    is_lost,
+    next_severe_run,
+)
 from pipeline.trackers.base import pick_channel
-from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
+from pipeline.types import (
+    BBox,
+    Event,
+    EventKind,
+    FrameResult,
+    InitTarget,
+    TargetResult,
+    TargetStatus,
+)
 
 
 @dataclass(frozen=True)
@@ -90,30 +113,30 @@ class KCState:
     channel: str
 
 
-def _bins(cfg: object, channel: str) -> int:
-    c = cfg.camshift  # type: ignore[attr-defined]
+def _bins(cfg: PipelineConfig, channel: str) -> int:
+    c = cfg.camshift
     return c.hue_bins if channel == "visible" else c.intensity_bins
 
 
 SATURATION_BINS = 4
 
 
-def _feature(image: np.ndarray, cfg: object, channel: str, saturation_bins: int = 1, hsv: np.ndarray | None = None):
-    c = cfg.camshift  # type: ignore[attr-defined]
+def _feature(image: np.ndarray, cfg: PipelineConfig, channel: str, saturation_bins: int = 1, hsv: np.ndarray | None = None):
+    c = cfg.camshift
     return feature(image, _bins(cfg, channel), c.min_saturation, c.min_value, saturation_bins, hsv)
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple[KCState, FrameResult]:
-    channel = pick_channel(frames, cfg.opencv.channel)  # type: ignore[attr-defined]
+def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[KCState, FrameResult]:
+    channel = pick_channel(frames, cfg.opencv.channel)
     image = getattr(frames, channel)
-    f = _feature(image, cfg, channel, cfg.camshift.saturation_bins)  # type: ignore[attr-defined]
+    f = _feature(image, cfg, channel, cfg.camshift.saturation_bins)
     fc = _feature(image, cfg, channel, SATURATION_BINS)
     states, results = [], []
     for t in targets:
         mask = box_mask(image.shape, t.box)
         q = histogram(f, mask)
         colour = kernel_masked_histogram(fc, t.box)
-        kf = kalman.init_state(t.box, cfg.kalman)  # type: ignore[attr-defined]
+        kf = kalman.init_state(t.box, cfg.kalman)
         states.append(KCTarget(t.id, kf, q, colour, TargetStatus.TRACKING, t.box, AreaReference((t.box.area,))))
         results.append(TargetResult(t.id, t.box, TargetStatus.TRACKING, "init", rho=1.0))
     return KCState(tuple(states), channel), FrameResult(frames.index, tuple(results))
@@ -132,7 +155,7 @@ def _fixed_size_candidates(prob: np.ndarray, center: tuple[float, float], size: 
     prediction with the target's last good size, and once more after a first pass with the window
     enlarged ``scale`` times (to reach a target that re-appears away from its prediction)."""
     h, w = prob.shape
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg_cs.max_iterations, cfg_cs.epsilon_px)  # type: ignore[attr-defined]
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg_cs.max_iterations, cfg_cs.epsilon_px)
     out = []
     starts = [center]
     big = BBox.from_center(center[0], center[1], size.w * scale, size.h * scale)
@@ -154,10 +177,10 @@ def _match(fc, box: BBox, colour: np.ndarray) -> float:
     return bhattacharyya_distance(bhattacharyya(kernel_masked_histogram(fc, box), colour))
 
 
-def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, frame: int
+def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: str, frame: int
                  ) -> tuple[KCTarget, TargetResult, list[Event]]:
     """One frame of Kalman-CAMShift for one target."""
-    kcfg, ocfg, ccfg = cfg.kalman, cfg.occlusion, cfg.camshift  # type: ignore[attr-defined]
+    kcfg, ocfg, ccfg = cfg.kalman, cfg.occlusion, cfg.camshift
     F, Q = kalman.motion_model(kcfg)
     H, R = kalman.measurement_model(kcfg)
     h, w = image.shape[:2]
@@ -257,7 +280,7 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: object, channel: str, fram
     return new_t, res, events
 
 
-def step(state: KCState, frames: FramePair, cfg: object) -> tuple[KCState, FrameResult]:
+def step(state: KCState, frames: FramePair, cfg: PipelineConfig) -> tuple[KCState, FrameResult]:
     t0 = time.perf_counter()
     image = getattr(frames, state.channel)
     new, results, events = [], [], []

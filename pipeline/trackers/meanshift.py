@@ -15,11 +15,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages.histogram import appearance_bins, kernel_histogram, search_roi
 from pipeline.stages.meanshift import mean_shift_scale_search
 from pipeline.trackers.base import pick_channel
-from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
+from pipeline.types import (
+    BBox,
+    Event,
+    EventKind,
+    FrameResult,
+    InitTarget,
+    TargetResult,
+    TargetStatus,
+)
 
 
 @dataclass(frozen=True)
@@ -39,10 +48,10 @@ class MeanShiftState:
 
 
 def track_target(
-    image: np.ndarray, target: MeanShiftTarget, cfg: object
+    image: np.ndarray, target: MeanShiftTarget, cfg: PipelineConfig
 ) -> tuple[MeanShiftTarget, TargetResult]:
     """One frame of mean shift + scale search for one target (``cfg`` is a PipelineConfig)."""
-    hcfg, mcfg = cfg.histogram, cfg.meanshift  # type: ignore[attr-defined]
+    hcfg, mcfg = cfg.histogram, cfg.meanshift
     h, w = image.shape[:2]
     box = target.box
     x0, y0, x1, y1 = search_roi(box, mcfg.search_margin, w, h)
@@ -70,10 +79,10 @@ def track_target(
     return new_t, result
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple[MeanShiftState, FrameResult]:
+def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[MeanShiftState, FrameResult]:
     channel = pick_channel(frames, "visible")
     image = getattr(frames, channel)
-    bins, m = appearance_bins(image, cfg.histogram)  # type: ignore[attr-defined]
+    bins, m = appearance_bins(image, cfg.histogram)
     states, results = [], []
     for t in targets:
         q = kernel_histogram(bins, t.box, m)
@@ -82,7 +91,7 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple
     return MeanShiftState(tuple(states), channel), FrameResult(frames.index, tuple(results))
 
 
-def step(state: MeanShiftState, frames: FramePair, cfg: object) -> tuple[MeanShiftState, FrameResult]:
+def step(state: MeanShiftState, frames: FramePair, cfg: PipelineConfig) -> tuple[MeanShiftState, FrameResult]:
     t0 = time.perf_counter()
     image = getattr(frames, state.channel)
     new_targets, results, events = [], [], []

@@ -10,83 +10,23 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from pipeline.errors import InputError
 from pipeline.io.sequence import FramePair
+from pipeline.tracker_config import CamShiftConfig, OpenCVTrackerConfig
 from pipeline.trackers.base import pick_channel
-from pipeline.types import BBox, Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
-
-
-@dataclass(frozen=True)
-class CamShiftConfig:
-    """The classic CamShift peer (OpenCV sample recipe).
-
-    Parameters
-    ----------
-    hue_bins : int
-        Bins of the hue histogram (visible), in [2, 180]; default 16.
-    intensity_bins : int
-        Bins of the intensity histogram (infrared), in [2, 256]; default 16.
-    min_saturation : int
-        Pixels below this saturation (0..255) are ignored in visible frames; default 60.
-        Increasing it ignores more washed-out pixels.
-    min_value : int
-        Pixels below this brightness (0..255) are ignored in visible frames; default 32.
-    max_iterations : int
-        Mean-shift iterations per frame, >= 1; default 10.
-    epsilon_px : float
-        Stop when the window moves less than this, px; default 1 (OpenCV rounds
-        epsilon squared, so values below 0.5 never stop early).
-    saturation_bins : int
-        Saturation bins crossed with the hue bins in the back-projection of
-        ``kalman-camshift``, in [1, 16]; default 4. 1 is the hue-only back-projection
-        the paper and OpenCV's recipe use; hue alone cannot tell a brown wall from a
-        shirt of its hue. The plain ``camshift`` peer always uses hue only.
-    """
-
-    hue_bins: int = 16
-    intensity_bins: int = 16
-    min_saturation: int = 60
-    min_value: int = 32
-    max_iterations: int = 10
-    epsilon_px: float = 1.0
-    saturation_bins: int = 4
-
-    def __post_init__(self) -> None:
-        if not 2 <= self.hue_bins <= 180:
-            raise ValueError(f"camshift.hue_bins must be in [2, 180]; got {self.hue_bins!r}")
-        if not 2 <= self.intensity_bins <= 256:
-            raise ValueError(f"camshift.intensity_bins must be in [2, 256]; got {self.intensity_bins!r}")
-        if not (0 <= self.min_saturation <= 255 and 0 <= self.min_value <= 255):
-            raise ValueError("camshift.min_saturation and camshift.min_value must be in [0, 255]")
-        if self.max_iterations < 1:
-            raise ValueError(f"camshift.max_iterations must be >= 1; got {self.max_iterations!r}")
-        if self.epsilon_px <= 0:
-            raise ValueError(f"camshift.epsilon_px must be > 0; got {self.epsilon_px!r}")
-        if not 1 <= self.saturation_bins <= 16:
-            raise ValueError(f"camshift.saturation_bins must be in [1, 16]; got {self.saturation_bins!r}")
-
-
-@dataclass(frozen=True)
-class OpenCVTrackerConfig:
-    """OpenCV's learning trackers (MIL, CSRT, KCF) used as peers.
-
-    Parameters
-    ----------
-    channel : str
-        Channel the peers run on in two-channel sequences, ``visible`` or ``infrared``;
-        default ``visible`` (what people run them on today).
-    """
-
-    channel: str = "visible"
-
-    def __post_init__(self) -> None:
-        if self.channel not in ("visible", "infrared"):
-            raise ValueError(f"opencv.channel must be 'visible' or 'infrared'; got {self.channel!r}")
+from pipeline.types import (
+    BBox,
+    Event,
+    EventKind,
+    FrameResult,
+    InitTarget,
+    TargetResult,
+    TargetStatus,
+)
 
 
 def _channel_image(frames: FramePair, channel: str) -> np.ndarray:

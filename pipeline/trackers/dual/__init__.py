@@ -17,7 +17,7 @@ visible-only modes), ``update.py`` updates size, models and motion, ``single.py`
 ``group.py`` wire them for a free target and a merged group, ``tracker.py`` runs the frame.
 """
 
-from pipeline.trackers.dual.config import DualConfig
+from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.decide import Case, Decision, Evidence, decide
 from pipeline.trackers.dual.state import DualState, DualTarget, GroupMemory
 from pipeline.trackers.dual.tracker import init, mode_of, step

@@ -13,13 +13,20 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
 from pipeline.stages import detection, kalman
-from pipeline.stages.histogram import appearance_bins, bhattacharyya, bright_fraction, ellipse_model, search_roi
+from pipeline.stages.histogram import (
+    appearance_bins,
+    bhattacharyya,
+    bright_fraction,
+    ellipse_model,
+    search_roi,
+)
 from pipeline.stages.meanshift import mean_shift
 from pipeline.stages.motion import hold_rates
-from pipeline.trackers.dual.config import DualConfig
+from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.state import DualTarget
 from pipeline.types import BBox, TargetStatus
 
@@ -98,10 +105,10 @@ class ColourStep:
         return BBox.from_center(float(self.prior.x[0]), float(self.prior.x[1]), self.t.size[0], self.t.size[1])
 
 
-def colour_stage(frames: FramePair, t: DualTarget, cfg: object, mode: str, timing: dict[str, float]) -> ColourStep:
+def colour_stage(frames: FramePair, t: DualTarget, cfg: PipelineConfig, mode: str, timing: dict[str, float]) -> ColourStep:
     """Motion prior y0 (or the previous position) and mean shift in the colour channel -> y1."""
-    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
-    kcfg = cfg.kalman  # type: ignore[attr-defined]
+    dcfg: DualConfig = cfg.dual
+    kcfg = cfg.kalman
     image = colour_image(frames, mode)
     H, W = image.shape[:2]
     missing = t.missing > 0 or t.status != TargetStatus.TRACKING
@@ -115,17 +122,17 @@ def colour_stage(frames: FramePair, t: DualTarget, cfg: object, mode: str, timin
     informative, bright = colour_informative(image, kernel, dcfg)
     rho1, ms_iters, y1, bins, roi0 = float("nan"), 0, y0, None, (0, 0)
     if informative:
-        margin = cfg.meanshift.search_margin * (dcfg.missing_search_scale if missing else 1.0)  # type: ignore[attr-defined]
+        margin = cfg.meanshift.search_margin * (dcfg.missing_search_scale if missing else 1.0)
         x0, yy0, x1, yy1 = search_roi(kernel, margin, W, H)
-        bins, _m = appearance_bins(np.ascontiguousarray(image[yy0:yy1, x0:x1]), cfg.histogram)  # type: ignore[attr-defined]
+        bins, _m = appearance_bins(np.ascontiguousarray(image[yy0:yy1, x0:x1]), cfg.histogram)
         roi0 = (x0, yy0)
         half = (t.size[0] / 2, t.size[1] / 2)
-        ms = mean_shift(bins, t.q, (y0[0] - x0, y0[1] - yy0), half, cfg.meanshift)  # type: ignore[attr-defined]
+        ms = mean_shift(bins, t.q, (y0[0] - x0, y0[1] - yy0), half, cfg.meanshift)
         ms_iters = ms.iterations
         if missing:  # also start from where the model's colours are densest in the enlarged region
             peak = backprojection_peak(bins, t.q, t.size)
             if peak is not None:
-                ms2 = mean_shift(bins, t.q, peak, half, cfg.meanshift)  # type: ignore[attr-defined]
+                ms2 = mean_shift(bins, t.q, peak, half, cfg.meanshift)
                 ms_iters += ms2.iterations
                 if not ms2.no_support and (ms.no_support or ms2.rho > ms.rho):
                     ms = ms2
@@ -165,26 +172,26 @@ def region_candidates(center: tuple[float, float], radius: float, size: tuple[fl
     return pts[k * limit:(k + 1) * limit]
 
 
-def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: object, limit: int) -> list[tuple[float, float]]:
+def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: PipelineConfig, limit: int) -> list[tuple[float, float]]:
     """Centres of the STDM regions of the IR frame (the visible one without IR) about the target's size (a
     quarter to four times its area), the closest in size first: where a lost target may be anywhere."""
     img = frames.infrared if frames.infrared is not None else frames.visible
     assert img is not None
-    found = detection.detect(img, cfg.detection).regions  # type: ignore[attr-defined]
+    found = detection.detect(img, cfg.detection).regions
     area = max(size[0] * size[1], 1.0)
     near = [r for r in found if 0.25 <= r.box.area / area <= 4.0]
     near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
     return [r.box.center for r in near[:limit]]
 
 
-def appearance_cue(frames: FramePair, cs: ColourStep, cfg: object, mode: str, timing: dict[str, float],
+def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
                    frame_index: int) -> AppearanceCue | None:
     """Detect the target with its filter at its prediction (and at the colour cue's position when that is
     elsewhere); a missing target is also looked for, every ``redetect_every_frames``, over a region widening
     with the missing frames and, after ``redetect_global_after_frames``, at the STDM regions of the whole
     frame, at most ``redetect_candidates`` places a frame. None without a filter."""
-    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
-    acfg: app.AppearanceConfig = cfg.appearance  # type: ignore[attr-defined]
+    dcfg: DualConfig = cfg.dual
+    acfg: app.AppearanceConfig = cfg.appearance
     t = cs.t
     if not dcfg.appearance_cue or t.appearance is None:
         return None

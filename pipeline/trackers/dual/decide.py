@@ -41,7 +41,7 @@ import math
 from dataclasses import dataclass
 
 from pipeline.stages.contour import ContourReason
-from pipeline.trackers.dual.config import DualConfig
+from pipeline.tracker_config import DualConfig
 from pipeline.types import BBox, TargetStatus
 
 

@@ -17,6 +17,7 @@ import time
 import cv2
 import numpy as np
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
 from pipeline.stages.contour import extract_contour
@@ -31,7 +32,7 @@ from pipeline.stages.merge import (
 )
 from pipeline.stages.model_update import UpdateDecision
 from pipeline.stages.motion import stop
-from pipeline.trackers.dual.config import DualConfig
+from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.cues import ColourStep, add_time, match_at
 from pipeline.trackers.dual.single import finish_single
 from pipeline.trackers.dual.state import DualTarget, GroupMemory
@@ -59,11 +60,11 @@ def main_blob(phi: np.ndarray, box: BBox, origin: tuple[int, int]) -> np.ndarray
     return labels == best if counts[best] > 0 else None
 
 
-def _split(frames: FramePair, css: list[ColourStep], blobs: list[BBox], cfg: object, mode: str,
+def _split(frames: FramePair, css: list[ColourStep], blobs: list[BBox], cfg: PipelineConfig, mode: str,
            timing: dict[str, float]) -> dict[int, tuple[DualTarget, TargetResult, list[Event]]]:
     """Every member re-associated with a blob (Hungarian on colour and distance) and continued on its own."""
-    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
-    mmf = cfg.meanshift.min_mass_fraction  # type: ignore[attr-defined]
+    dcfg: DualConfig = cfg.dual
+    mmf = cfg.meanshift.min_mass_fraction
     ids = tuple(cs.t.id for cs in css)
     rho = np.full((len(css), len(blobs)), np.nan)
     dist = np.zeros((len(css), len(blobs)))
@@ -110,20 +111,20 @@ def _placements(css: list[ColourStep], c, box: BBox, fg_id: int, group_ok: bool,
     return placed
 
 
-def finish_group(frames: FramePair, css: list[ColourStep], cfg: object, mode: str, timing: dict[str, float],
+def finish_group(frames: FramePair, css: list[ColourStep], cfg: PipelineConfig, mode: str, timing: dict[str, float],
                  memories: tuple[GroupMemory, ...]):
     """One merged group this frame (module doc): ({id: (new state, result, events)}, the group's level set or None)."""
-    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
-    kcfg = cfg.kalman  # type: ignore[attr-defined]
+    dcfg: DualConfig = cfg.dual
+    kcfg = cfg.kalman
     ir = frames.infrared
     assert ir is not None
     clock = time.perf_counter()
     ids = tuple(cs.t.id for cs in css)
     box = union([cs.box1 for cs in css] + [cs.box_prior for cs in css if cs.t.status == TargetStatus.MERGED])
-    group_cfg = dataclasses.replace(cfg.contour, max_area_ratio=50.0, max_dimension_ratio=50.0)  # type: ignore[attr-defined]
+    group_cfg = dataclasses.replace(cfg.contour, max_area_ratio=50.0, max_dimension_ratio=50.0)
     prev = next((m for m in memories if m.members == ids), None)
     shift = (box.cx - prev.center[0], box.cy - prev.center[1]) if prev else (0.0, 0.0)
-    c = extract_contour(ir, box, group_cfg, cfg.levelset, prev.memory if prev else None, shift,  # type: ignore[attr-defined]
+    c = extract_contour(ir, box, group_cfg, cfg.levelset, prev.memory if prev else None, shift,
                         cold_init=box.scaled(1.15), part_width=min(cs.t.size[0] for cs in css))
     clock = add_time(timing, "levelset", clock)
     min_area = dcfg.split_min_area_fraction * min(cs.t.reference_area for cs in css)
@@ -133,7 +134,7 @@ def finish_group(frames: FramePair, css: list[ColourStep], cfg: object, mode: st
 
     # still merged; a group contour without contrast (leaked into the background) places nobody
     was_merged = all(cs.t.status == TargetStatus.MERGED for cs in css)
-    group_ok = c.box is not None and abs(c.contrast) >= cfg.contour.min_contrast  # type: ignore[attr-defined]
+    group_ok = c.box is not None and abs(c.contrast) >= cfg.contour.min_contrast
     y2 = c.box.center if c.box is not None else box.center
     fg_id = choose_foreground_stable({cs.t.id: cs.rho1 if cs.informative else float("nan") for cs in css},
                                      prev.foreground if prev else None, dcfg.role_margin,

@@ -8,13 +8,25 @@ import time
 
 import numpy as np
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
 from pipeline.stages.contour import ContourReason, ContourResult, extract_contour
-from pipeline.trackers.dual.config import DualConfig
-from pipeline.trackers.dual.cues import ColourStep, add_time, appearance_cue, filter_images, match_at
+from pipeline.tracker_config import DualConfig
+from pipeline.trackers.dual.cues import (
+    ColourStep,
+    add_time,
+    appearance_cue,
+    filter_images,
+    match_at,
+)
 from pipeline.trackers.dual.decide import Case, Decision, Evidence, decide
-from pipeline.trackers.dual.update import fused_size, motion_update, update_appearance, update_colour_model
+from pipeline.trackers.dual.update import (
+    fused_size,
+    motion_update,
+    update_appearance,
+    update_colour_model,
+)
 from pipeline.types import BBox, Event, EventKind, TargetResult, TargetStatus
 
 CONFIDENCE = {TargetStatus.TRACKING: 1.0, TargetStatus.OCCLUDED_PARTIAL: 0.6, TargetStatus.OCCLUDED_SEVERE: 0.3}
@@ -48,12 +60,12 @@ def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
     return cs.y0
 
 
-def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, timing: dict[str, float],
+def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
                   start: tuple[float, float] | None = None, events_in: list[Event] | None = None):
     """Contour, decision, size, models and motion for one target that is not merged: (new state, result, events).
 
     ``start`` forces a cold contour start there (a blob after a split), which starts the re-merge hold."""
-    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
+    dcfg: DualConfig = cfg.dual
     t, prior = cs.t, cs.prior
     ir = frames.infrared if mode in ("dual", "ir") else None
     H, W = frames.shape
@@ -66,11 +78,11 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
         yc, memory = (start, None) if start is not None else (contour_start(cs, cue, dcfg), t.memory)
         expected = BBox.from_center(yc[0], yc[1], t.size[0], t.size[1])
         shift = (yc[0] - t.memory_center[0], yc[1] - t.memory_center[1])
-        c = extract_contour(ir, expected, cfg.contour, cfg.levelset, memory, shift)  # type: ignore[attr-defined]
+        c = extract_contour(ir, expected, cfg.contour, cfg.levelset, memory, shift)
         clock = add_time(timing, "levelset", clock)
     contour_usable = c is not None and c.box is not None and (
         c.ok or not dcfg.contour_checks or (not dcfg.channel_weighting and c.reason == ContourReason.LOW_CONTRAST))
-    mmf = cfg.meanshift.min_mass_fraction  # type: ignore[attr-defined]
+    mmf = cfg.meanshift.min_mass_fraction
     rho_c = match_at(cs.bins, t.q, c.box, cs.roi0, mmf) if (
         contour_usable and cs.informative and cs.bins is not None and c is not None and c.box is not None) else float("nan")
 
@@ -93,7 +105,7 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
         decision = Decision(Case.CONTOUR, c.box, 1.0, TargetStatus.TRACKING, "split-blob", True, False, "levelset")
 
     # size, output box, models
-    size, app_size = fused_size(t.size, t.app_size, decision, c, cue, dcfg, cfg.contour.min_contrast)  # type: ignore[attr-defined]
+    size, app_size = fused_size(t.size, t.app_size, decision, c, cue, dcfg, cfg.contour.min_contrast)
     entering = t.entering
     walked_in = walked_in_size(size, c, rho_c, entering, dcfg) if any(entering) else None
     if walked_in is not None:  # its first clean contour shows what the frame's border hid
@@ -114,15 +126,15 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: object, mode: str, tim
     if walked_in is not None:  # the filter learns the whole target afresh
         app_size = size
         if model is not None:
-            model = app.train(vis, irf, out, cfg.appearance)  # type: ignore[attr-defined]
+            model = app.train(vis, irf, out, cfg.appearance)
     else:
         model = update_appearance(model, vis, irf, BBox.from_center(out.cx, out.cy, *app_size), decision,
-                                  colour_decision, cs.informative, cfg.appearance, frames.index)  # type: ignore[attr-defined]
+                                  colour_decision, cs.informative, cfg.appearance, frames.index)
     events: list[Event] = list(events_in or [])
     if not colour_decision.update and t.last_update.startswith("updated") and colour_decision.reason != "colour-uninformative":
         events.append(Event(EventKind.MODEL_FROZEN, f"T{t.id} model frozen ({colour_decision.reason})", (t.id,)))
     clock = add_time(timing, "model_update", clock)
-    kf, history, out = motion_update(cs, decision, out, frames.index, dcfg, cfg.kalman, t.history)  # type: ignore[attr-defined]
+    kf, history, out = motion_update(cs, decision, out, frames.index, dcfg, cfg.kalman, t.history)
     add_time(timing, "kalman", clock)
 
     status = decision.status

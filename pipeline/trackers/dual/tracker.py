@@ -6,13 +6,14 @@ import dataclasses
 import time
 from collections.abc import Sequence
 
+from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
 from pipeline.stages import kalman
 from pipeline.stages.contour import extract_contour
 from pipeline.stages.histogram import appearance_bins, kernel_histogram
 from pipeline.stages.merge import merge_groups
-from pipeline.trackers.dual.config import DualConfig
+from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.cues import colour_image, colour_stage, filter_images
 from pipeline.trackers.dual.group import finish_group
 from pipeline.trackers.dual.single import finish_single
@@ -27,23 +28,23 @@ def mode_of(frames: FramePair) -> str:
     return "ir" if frames.infrared is not None else "visible"
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple[DualState, FrameResult]:
+def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[DualState, FrameResult]:
     """Start on the first frame: the colour histogram, the correlation filter and the level set of every target."""
-    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
+    dcfg: DualConfig = cfg.dual
     mode = mode_of(frames)
-    bins, m = appearance_bins(colour_image(frames, mode), cfg.histogram)  # type: ignore[attr-defined]
+    bins, m = appearance_bins(colour_image(frames, mode), cfg.histogram)
     vis, ir = filter_images(frames, mode)
     states, results = [], []
     H, W = frames.shape
     for t in targets:
         b = t.box
         q = kernel_histogram(bins, t.box, m)
-        kf = kalman.init_state(t.box, cfg.kalman)  # type: ignore[attr-defined]
-        c = extract_contour(ir, t.box, cfg.contour, cfg.levelset) if ir is not None else None  # type: ignore[attr-defined]
+        kf = kalman.init_state(t.box, cfg.kalman)
+        c = extract_contour(ir, t.box, cfg.contour, cfg.levelset) if ir is not None else None
         # walking in: the given box and the target's IR blob are both cut by the frame's border
         cut = c.at_border if c is not None and c.box is not None else (False, False)
         entering = (cut[0] and (b.x <= 1.0 or b.x2 >= W - 1.0), cut[1] and (b.y <= 1.0 or b.y2 >= H - 1.0))
-        model = app.train(vis, ir, t.box, cfg.appearance) if dcfg.appearance_cue else None  # type: ignore[attr-defined]
+        model = app.train(vis, ir, t.box, cfg.appearance) if dcfg.appearance_cue else None
         states.append(DualTarget(t.id, t.box, (t.box.w, t.box.h), q, TargetStatus.TRACKING, kf,
                                  c.memory if c is not None and c.box is not None else None, t.box.center,
                                  ((1.0, t.box.cx, t.box.cy, t.box.w, t.box.h),), appearance=model,
@@ -54,11 +55,11 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: object) -> tuple
     return DualState(tuple(states), mode), FrameResult(frames.index, tuple(results))
 
 
-def step(state: DualState, frames: FramePair, cfg: object) -> tuple[DualState, FrameResult]:
+def step(state: DualState, frames: FramePair, cfg: PipelineConfig) -> tuple[DualState, FrameResult]:
     """One frame: mean shift for every target, the merge test (eq. 10), then each group and each single target."""
     t0 = time.perf_counter()
     timing: dict[str, float] = {}
-    dcfg: DualConfig = cfg.dual  # type: ignore[attr-defined]
+    dcfg: DualConfig = cfg.dual
     steps = {t.id: colour_stage(frames, t, cfg, state.mode, timing) for t in state.targets}
     # eq. 10 on the mean-shift positions; a member of a merge is tested at its prediction instead, since its
     # mean shift may sit on whoever hides it (a look-alike, above all) and would hold the group together

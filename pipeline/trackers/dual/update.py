@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.config import PipelineConfig
 from pipeline.stages import appearance as app
 from pipeline.stages import kalman
 from pipeline.stages.contour import ContourResult
 from pipeline.stages.histogram import bhattacharyya, ellipse_model
 from pipeline.stages.model_update import UpdateDecision, selective_update, should_update_model
 from pipeline.stages.motion import coast_start, stop
-from pipeline.trackers.dual.config import DualConfig
+from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.cues import AppearanceCue, ColourStep
 from pipeline.trackers.dual.decide import Case, Decision
 from pipeline.types import BBox, TargetStatus
@@ -50,15 +51,15 @@ def fused_size(size: tuple[float, float], app_size: tuple[float, float], decisio
 
 
 def update_colour_model(q: np.ndarray, bins: np.ndarray | None, roi0: tuple[int, int], box: BBox, learn: bool,
-                        measured: bool, cfg: object) -> tuple[np.ndarray, UpdateDecision, float]:
+                        measured: bool, cfg: PipelineConfig) -> tuple[np.ndarray, UpdateDecision, float]:
     """Eq. 8-9 with the histogram at the new box (the gate: ``pipeline.stages.model_update``): (q, decision, rho2)."""
-    mu_cfg = cfg.model_update  # type: ignore[attr-defined]
+    mu_cfg = cfg.model_update
     if measured and bins is not None and not learn and mu_cfg.enabled:
         return q, UpdateDecision(False, "unconfirmed"), float("nan")
     if not measured or bins is None or not learn:
         return q, should_update_model(0.0, not measured, bins is not None, learn, mu_cfg), float("nan")
     p, _, mass = ellipse_model(bins, box.cx - roi0[0], box.cy - roi0[1], box.w / 2, box.h / 2, q.size)
-    if mass < cfg.meanshift.min_mass_fraction:  # type: ignore[attr-defined]
+    if mass < cfg.meanshift.min_mass_fraction:
         return q, UpdateDecision(False, "window-cut-by-border"), float("nan")
     rho2 = bhattacharyya(p, q)
     decision = should_update_model(rho2, False, True, True, mu_cfg)

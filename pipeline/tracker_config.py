@@ -1,12 +1,19 @@
-"""The dual tracker's parameters (``--set dual.<name>=...``)."""
+"""The trackers' own parameters: ``dual``, ``camshift`` and ``opencv`` sections.
+
+They live beside the stage sections (``pipeline.stages.*``) rather than in the trackers, so
+that :mod:`pipeline.config` gathers every section without importing a tracker and the
+trackers take the typed :class:`pipeline.config.PipelineConfig`.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pipeline.params import Section, param
+
 
 @dataclass(frozen=True)
-class DualConfig:
+class DualConfig(Section):
     """The dual-channel tracker: what each cue may do, and when a target counts as hidden or gone.
 
     The paper's method (Zhao, Bo, Yin 2012) is the configuration with every addition off
@@ -141,85 +148,101 @@ class DualConfig:
         paper: colour only).
     """
 
-    scale_rate: float = 0.2
+    section = "dual"
+
+    scale_rate: float = param(0.2, ge=0, le=1)
     appearance_cue: bool = True
-    psr_confident: float = 7.0
-    psr_update: float = 6.0
-    psr_reacquire: float = 9.0
-    agree_fraction: float = 0.35
-    scale_agree_ratio: float = 1.25
-    colour_veto_margin: float = 0.2
-    jump_fraction: float = 0.75
+    psr_confident: float = param(7.0, ge=0)
+    psr_update: float = param(6.0, ge=0)
+    psr_reacquire: float = param(9.0, ge=0)
+    agree_fraction: float = param(0.35, gt=0, le=2)
+    scale_agree_ratio: float = param(1.25, gt=1)
+    colour_veto_margin: float = param(0.2, gt=0, le=1)
+    jump_fraction: float = param(0.75, gt=0, le=5)
     contour_checks: bool = True
     channel_weighting: bool = True
     motion_prior: bool = True
     redetect: bool = True
-    redetect_radius_px_per_frame: float = 3.0
-    redetect_global_after_frames: int = 12
-    redetect_every_frames: int = 2
-    redetect_candidates: int = 12
-    colour_min_value: int = 40
-    colour_min_fraction: float = 0.3
-    colour_min_rho: float = 0.6
-    occlusion_rho: float = 0.75
-    colour_trust_rho: float = 0.85
-    partial_area_ratio: float = 0.6
-    reacquire_rho: float = 0.7
-    reacquire_gate_px_per_frame: float = 1.0
-    max_missing_frames: int = 50
-    missing_search_scale: float = 2.0
-    history_frames: int = 16
-    rewind_frames: int = 8
-    onset_frames: int = 4
+    redetect_radius_px_per_frame: float = param(3.0, ge=0)
+    redetect_global_after_frames: int = param(12, ge=1)
+    redetect_every_frames: int = param(2, ge=1)
+    redetect_candidates: int = param(12, ge=1)
+    colour_min_value: int = param(40, ge=0, le=255)
+    colour_min_fraction: float = param(0.3, ge=0, le=1)
+    colour_min_rho: float = param(0.6, ge=0, le=1)
+    occlusion_rho: float = param(0.75, ge=0, le=1)
+    colour_trust_rho: float = param(0.85, ge=0, le=1)
+    partial_area_ratio: float = param(0.6, gt=0, lt=1)
+    reacquire_rho: float = param(0.7, ge=0, le=1)
+    reacquire_gate_px_per_frame: float = param(1.0, ge=0)
+    max_missing_frames: int = param(50, ge=1)
+    missing_search_scale: float = param(2.0, ge=1, le=5)
+    history_frames: int = param(16, ge=2, le=100)
+    rewind_frames: int = param(8, ge=0, le=30)
+    onset_frames: int = param(4, ge=0, le=10)
     merge_handling: bool = False
-    merge_position: str = "auto"
-    role_margin: float = 0.05
-    split_min_area_fraction: float = 0.3
-    association_motion_weight: float = 1.0
-    lookalike_rho: float = 0.85
-    merge_visible_rho: float = 0.75
+    merge_position: str = param("auto", choices=("auto", "eq11", "motion"))
+    role_margin: float = param(0.05, ge=0, le=1)
+    split_min_area_fraction: float = param(0.3, gt=0, lt=1)
+    association_motion_weight: float = param(1.0, ge=0)
+    lookalike_rho: float = param(0.85, ge=0, le=1)
+    merge_visible_rho: float = param(0.75, ge=0, le=1)
     merge_inside_blob: bool = True
-    split_hold_frames: int = 3
-    remerge_scale: float = 0.8
-    kmeans_iterations: int = 5
+    split_hold_frames: int = param(3, ge=0)
+    remerge_scale: float = param(0.8, gt=0, le=1)
+    kmeans_iterations: int = param(5, ge=1, le=50)
 
-    def __post_init__(self) -> None:
-        def between(name: str, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False) -> None:
-            v = getattr(self, name)
-            ok = (lo < v if lo_open else lo <= v) and (v < hi if hi_open else v <= hi)
-            if not ok:
-                lb, rb = "(" if lo_open else "[", ")" if hi_open else "]"
-                raise ValueError(f"dual.{name} must be in {lb}{lo:g}, {hi:g}{rb}; got {v!r}")
 
-        def integer(name: str, lo: int, hi: int | None = None) -> None:
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= lo and (hi is None or v <= hi)):
-                rng = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
-                raise ValueError(f"dual.{name} must be an integer {rng}; got {v!r}")
+@dataclass(frozen=True)
+class CamShiftConfig(Section):
+    """The classic CamShift peer (OpenCV sample recipe).
 
-        for name in ("scale_rate", "colour_min_fraction", "colour_min_rho", "occlusion_rho", "colour_trust_rho",
-                     "reacquire_rho", "lookalike_rho", "merge_visible_rho", "role_margin"):
-            between(name, 0, 1)
-        for name in ("psr_confident", "psr_update", "psr_reacquire", "reacquire_gate_px_per_frame",
-                     "redetect_radius_px_per_frame", "association_motion_weight"):
-            between(name, 0, float("inf"))
-        between("agree_fraction", 0, 2, lo_open=True)
-        between("colour_veto_margin", 0, 1, lo_open=True)
-        between("jump_fraction", 0, 5, lo_open=True)
-        between("scale_agree_ratio", 1, float("inf"), lo_open=True)
-        between("colour_min_value", 0, 255)
-        between("partial_area_ratio", 0, 1, lo_open=True, hi_open=True)
-        between("split_min_area_fraction", 0, 1, lo_open=True, hi_open=True)
-        between("missing_search_scale", 1, 5)
-        between("remerge_scale", 0, 1, lo_open=True)
-        integer("max_missing_frames", 1)
-        integer("history_frames", 2, 100)
-        integer("rewind_frames", 0, 30)
-        integer("onset_frames", 0, 10)
-        integer("kmeans_iterations", 1, 50)
-        integer("split_hold_frames", 0)
-        integer("redetect_global_after_frames", 1)
-        integer("redetect_every_frames", 1)
-        integer("redetect_candidates", 1)
-        if self.merge_position not in ("auto", "eq11", "motion"):
-            raise ValueError(f"dual.merge_position must be auto, eq11 or motion; got {self.merge_position!r}")
+    Parameters
+    ----------
+    hue_bins : int
+        Bins of the hue histogram (visible), in [2, 180]; default 16.
+    intensity_bins : int
+        Bins of the intensity histogram (infrared), in [2, 256]; default 16.
+    min_saturation : int
+        Pixels below this saturation are ignored in visible frames, in [0, 255]; default 60.
+        Increasing it ignores more washed-out pixels.
+    min_value : int
+        Pixels below this brightness are ignored in visible frames, in [0, 255]; default 32.
+    max_iterations : int
+        Mean-shift iterations per frame, >= 1; default 10.
+    epsilon_px : float
+        Stop when the window moves less than this, px, > 0; default 1 (OpenCV rounds
+        epsilon squared, so values below 0.5 never stop early).
+    saturation_bins : int
+        Saturation bins crossed with the hue bins in the back-projection of
+        ``kalman-camshift``, in [1, 16]; default 4. 1 is the hue-only back-projection
+        the paper and OpenCV's recipe use; hue alone cannot tell a brown wall from a
+        shirt of its hue. The plain ``camshift`` peer always uses hue only.
+    """
+
+    section = "camshift"
+
+    hue_bins: int = param(16, ge=2, le=180)
+    intensity_bins: int = param(16, ge=2, le=256)
+    min_saturation: int = param(60, ge=0, le=255)
+    min_value: int = param(32, ge=0, le=255)
+    max_iterations: int = param(10, ge=1)
+    epsilon_px: float = param(1.0, gt=0)
+    saturation_bins: int = param(4, ge=1, le=16)
+
+
+@dataclass(frozen=True)
+class OpenCVTrackerConfig(Section):
+    """OpenCV's learning trackers (MIL, CSRT, KCF) used as peers.
+
+    Parameters
+    ----------
+    channel : str
+        Channel the peers run on in two-channel sequences, ``visible`` or ``infrared``;
+        default ``visible`` (what people run them on today).
+    """
+
+    section = "opencv"
+
+    channel: str = param("visible", choices=("visible", "infrared"))
+
