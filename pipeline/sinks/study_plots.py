@@ -76,3 +76,35 @@ def radar_trajectories(path: Path, truth: np.ndarray) -> Path:
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def radar_sensitivity_figure(path: Path, rows: list[dict], paper: dict) -> Path:
+    """Single-target RMS position error of algorithms 1-3 against the sampling period (CHNN study).
+
+    One panel per filter Q (``acc_std``); solid lines the 2-D distance RMS, dashed the RMS of
+    one coordinate (alg. 1); dotted horizontal lines the paper's figures; both axes logarithmic.
+    """
+    accs = sorted({r["acc_std"] for r in rows}, reverse=True)
+    fig, axes = plt.subplots(1, len(accs), figsize=(5.2 * len(accs), 3.8), dpi=100, sharey=True)
+    axes = np.atleast_1d(axes)
+    for ax, acc in zip(axes, accs, strict=True):
+        sel = sorted((r for r in rows if r["acc_std"] == acc), key=lambda r: r["dt_s"])
+        dts = [r["dt_s"] for r in sel]
+        for alg in ("alg1", "alg2", "alg3"):
+            line, = ax.plot(dts, [r["single"][alg]["pos"] for r in sel], "o-", lw=1.3, label=f"{alg} 2-D")
+            ax.axhline(paper["single"][alg]["pos"], color=line.get_color(), ls=":", lw=1,
+                       label=f"paper {alg} {paper['single'][alg]['pos']:.0f} m")
+        ax.plot(dts, [r["single"]["alg1"]["pos_per_axis"] for r in sel], "s--", lw=1.1, color="k",
+                label="alg1 per axis")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("sampling period [s]")
+        ax.set_title("paper's Q (20 m position noise)" if acc == 0 else f"Q + white acceleration {acc:g} m/s²",
+                     fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("RMS position error, single target [m]")
+    axes[-1].legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
