@@ -3,9 +3,10 @@
 Writes ``det.txt``, ``rois.csv``, ``detections.rrd`` (``pipeline.sinks.detections``) and
 ``summary.json`` (frames, detections per frame, stage time, ``fps``; with ground truth,
 ``recall`` and ``precision``: a target counts when it is visible (visibility >= 0.9 in a
-synthetic scene's ``scene.json``, else any truth box) and no other target's box overlaps
-it, and it is found when an accepted ROI's centre lies inside its box; a ROI is correct when
-its centre lies inside any target's box). The frames go through the run loop of
+synthetic scene's ``scene.json``, else any truth box) and no other target's or distractor's
+box overlaps it, and it is found when an accepted ROI's centre lies inside its box; a ROI is
+correct when its centre lies inside any target's box; one on a distractor of a random scene,
+a moving object that is not a target, is not counted). The frames go through the run loop of
 ``pipeline.runloop``, as ``dualtrack track``'s do.
 """
 
@@ -47,19 +48,26 @@ def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(a[0] < b[0] + b[2] and b[0] < a[0] + a[2] and a[1] < b[1] + b[3] and b[1] < a[1] + a[3])
 
 
-def score_frame(d: Detections, boxes: list[np.ndarray], visible: list[bool]) -> tuple[int, int, int, int]:
-    """(targets wanted, found, ROIs, correct ROIs) of one frame (see the module doc)."""
+def score_frame(d: Detections, boxes: list[np.ndarray], visible: list[bool],
+                distractors: list[np.ndarray] = ()) -> tuple[int, int, int, int]:
+    """(targets wanted, found, ROIs, correct ROIs) of one frame (see the module doc).
+
+    A ROI whose centre lies in a distractor's box (a moving object that is not a target) and
+    in no target's box is left out of the ROI count.
+    """
     def inside(r, b):
         return b[0] <= r.centroid[0] <= b[0] + b[2] and b[1] <= r.centroid[1] <= b[1] + b[3]
 
     want = found = 0
     for k, b in enumerate(boxes):
-        if not visible[k] or any(_overlap(b, o) for j, o in enumerate(boxes) if j != k):
+        if not visible[k] or any(_overlap(b, o) for j, o in enumerate(boxes) if j != k) \
+                or any(_overlap(b, o) for o in distractors):
             continue
         want += 1
         found += any(inside(r, b) for r in d.regions)
-    correct = sum(any(inside(r, b) for b in boxes) for r in d.regions)
-    return want, found, len(d.regions), correct
+    on_target = [any(inside(r, b) for b in boxes) for r in d.regions]
+    counted = sum(t or not any(inside(r, b) for b in distractors) for r, t in zip(d.regions, on_target, strict=True))
+    return want, found, counted, sum(on_target)
 
 
 class _FilesSink:
@@ -128,7 +136,8 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
             ids = [g for g, b in truth.items() if not np.isnan(b[i]).any()]
             boxes = [truth[g][i] for g in ids]
             visible = [vis.get(str(g), [1.0] * seq.n_frames)[i] >= 0.9 for g in ids]
-            counts[:] += score_frame(d, boxes, visible)
+            others = [b[i] for b in seq.truth.distractors.values() if not np.isnan(b[i]).any()]
+            counts[:] += score_frame(d, boxes, visible, others)
         return DetectItem(d, img, {"detection": dt})
 
     def make_sinks() -> list:

@@ -328,4 +328,5 @@ def _truncate(seq: Sequence, n: int):
         {i: v[:n] for i, v in t.visibility.items()},
         t.files,
         t.multi,
+        {i: b[:n] for i, b in t.distractors.items()},
     )

@@ -9,8 +9,8 @@ import pytest
 
 from pipeline.errors import InputError
 from pipeline.io.sequence import open_sequence
-from pipeline.synthetic import synthesize_random
-from pipeline.synthetic.family import (ATTRIBUTES, DEV_SEEDS, TEST_SEEDS, draw_scene, parse_seed_range,
+from pipeline.synthetic import DISTRACTOR_ID_BASE, synthesize_random
+from pipeline.synthetic.family import (ATTRIBUTES, DEV_SEEDS, DISTRACTOR_ROLES, TEST_SEEDS, draw_scene, parse_seed_range,
                                        parse_target_count)
 from pipeline.synthetic.scene import Renderer
 
@@ -182,3 +182,27 @@ def test_split_and_option_parsing():
 def test_target_count_is_honoured():
     assert {len(draw_scene(s, targets=3).params["targets"]) for s in range(5)} == {3}
     assert {len(draw_scene(s, targets=(2, 3)).params["targets"]) for s in range(20)} == {2, 3}
+
+
+def test_moving_objects_that_are_not_targets_are_distractor_rows_of_the_truth(tmp_path):
+    d = synthesize_random(tmp_path / "r", 1, targets=(2, 3), frames=60)  # seed 1 draws a crossing object
+    drawn = draw_scene(1, (2, 3), n_frames=60)
+    movers = [i for i, role in drawn.roles.items() if role in DISTRACTOR_ROLES]
+    assert movers
+    rows = [line.split(",") for line in (d / "gt.txt").read_text().splitlines()]
+    assert {(r[6], r[7]) for r in rows if int(r[1]) >= DISTRACTOR_ID_BASE} == {("0", "8")}
+    seq = open_sequence(d)
+    assert set(seq.truth.distractors) == {DISTRACTOR_ID_BASE + i for i in movers}
+    assert set(seq.truth.primary()) == {a.target_id for a in drawn.scene.actors if a.target_id > 0}
+    r = Renderer(drawn.scene, drawn.render_seed)
+    seen = 0
+    for t in range(1, 61):
+        f = r.render_frame(t)
+        for i in movers:
+            got = seq.truth.distractors[DISTRACTOR_ID_BASE + i][t - 1]
+            if f.others[i] is None:
+                assert np.isnan(got).all()
+            else:
+                np.testing.assert_allclose(got, f.others[i], atol=1e-3)
+                seen += 1
+    assert seen > 0

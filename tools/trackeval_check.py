@@ -9,7 +9,8 @@ imports OpenCV, so install it without its dependencies next to dualtrack::
 
 Each run folder's ``tracks.csv`` is scored by TrackEval's ``MotChallenge2DBox`` dataset
 (its default preprocessing, as for MOTChallenge) against the sequence's own ``gt.txt``
-(for a single-target sequence, a ``gt.txt`` written from its truth), exactly as a user would
+(for a single-target sequence, a ``gt.txt`` written from its truth; distractor rows, class 8,
+included), exactly as a user would
 score the folder, and by :func:`pipeline.eval.evaluate`. ``--perturb N`` adds N
 results made from the truth itself with seeded id swaps, gaps, false positives, misses and
 jitter, to widen the cases. The table lists every metric of both and the largest
@@ -45,6 +46,9 @@ def _gt_rows(seq) -> list[str]:
         for tid, b in sorted(seq.truth.boxes[ch].items()):
             if not np.isnan(b[f]).any():
                 rows.append(f"{f + 1},{tid},{_n(b[f, 0] + 1)},{_n(b[f, 1] + 1)},{_n(b[f, 2])},{_n(b[f, 3])},1,1,1")
+        for tid, b in sorted(seq.truth.distractors.items()):  # class 8: TrackEval drops the tracks matched to them
+            if not np.isnan(b[f]).any():
+                rows.append(f"{f + 1},{tid},{_n(b[f, 0] + 1)},{_n(b[f, 1] + 1)},{_n(b[f, 2])},{_n(b[f, 3])},0,8,1")
     return rows
 
 
@@ -68,6 +72,8 @@ def _perturbed(seq, rng: np.random.Generator) -> dict[int, np.ndarray]:
     s = int(rng.integers(0, n - 5))
     fp[s : s + int(rng.integers(3, 30))] = [rng.uniform(0, seq.width - 30), rng.uniform(0, seq.height - 30), 25.0, 40.0]
     out[999] = fp
+    for k, b in enumerate(seq.truth.distractors.values()):  # a track on each object that is not a target
+        out[900 + k] = b + rng.normal(0, 1.0, b.shape) * [1, 1, 0.3, 0.3]
     if len(ids) >= 2 and rng.random() < 0.4:
         out.pop(ids[-1])
     return out

@@ -20,6 +20,7 @@ is a truth id, else ``assign``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -74,6 +75,8 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
     ids = list(gt)
     if multi is None:
         multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
+    if truth.distractors:
+        tracks = dataclasses.replace(tracks, boxes=mot.drop_distractor_matches(gt, tracks.boxes, truth.distractors))
     data = mot.sequence_data(gt, tracks.boxes, n_frames)
     id_info = mot.idf1(gt, tracks.boxes, data=data) if tracks.boxes else {"idf1": 0.0, "idp": 0.0, "idr": 0.0, "mapping": {}}
     which = track_for_truth(ids, tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]

@@ -23,6 +23,11 @@ MOTChallenge publishes; ``trackeval/metrics/clear.py``, ``identity.py``, ``hota.
   alignment score (its IoU-weighted co-occurrence over the sequence), then per
   ``alpha = 0.05, 0.10, ..., 0.95`` the matches with ``IoU >= alpha`` give DetA, AssA and
   LocA; ``HOTA = mean over alpha of sqrt(DetA * AssA)``.
+* Distractors (:func:`drop_distractor_matches`, TrackEval's MOT17 preprocessing): in each
+  frame truth and distractor boxes together are assigned to the track boxes (Hungarian on
+  IoU among pairs with ``IoU >= 0.5``); a track box assigned to a distractor is removed
+  before every score, so a box on an object that is not a target is neither a true nor a
+  false positive.
 * Purity: ``P[i, j]`` = fraction of the frames where target i is present in which it is
   matched (CLEAR matching) to track j; the last column, ``none``, counts unmatched frames;
   rows sum to 1.
@@ -61,6 +66,58 @@ def box_ious(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     inter[union <= 0 + EPS] = 0
     union[union <= 0 + EPS] = 1
     return np.clip(inter / union, 0.0, 1.0)
+
+
+def drop_distractor_matches(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray],
+                            distractors: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """``tracks`` without the boxes that match a distractor (TrackEval's MOT17 preprocessing).
+
+    Parameters
+    ----------
+    gt, distractors : dict of int to (N, 4) arrays
+        Truth boxes and distractor boxes per id, ``x, y, w, h``, NaN rows absent.
+    tracks : dict of int to (N, 4) arrays
+        Track boxes per id.
+
+    Returns
+    -------
+    dict of int to (N, 4) arrays
+        Copies of ``tracks`` with the removed boxes set to NaN; ``tracks`` itself when
+        there are no distractors.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> nan = [np.nan] * 4
+    >>> gt = {1: np.array([[0, 0, 10, 10.0]])}
+    >>> car = {9: np.array([[50, 50, 20, 10.0]])}
+    >>> tr = {1: np.array([[1, 0, 10, 10.0]]), 2: np.array([[51, 50, 20, 10.0]]), 3: np.array([nan])}
+    >>> out = drop_distractor_matches(gt, tr, car)
+    >>> bool(np.isnan(out[2][0]).all()), bool(np.isnan(out[1][0]).any())
+    (True, False)
+    """
+    if not distractors or not tracks:
+        return tracks
+    n = next(iter(tracks.values())).shape[0]
+    out = {t: b.copy() for t, b in tracks.items()}
+    rows = [*gt.values(), *distractors.values()]
+    is_distractor = np.array([False] * len(gt) + [True] * len(distractors))
+    tids = list(tracks)
+    for f in range(n):
+        present = [k for k, b in enumerate(rows) if f < b.shape[0] and not np.isnan(b[f]).any()]
+        if not any(is_distractor[k] for k in present):
+            continue
+        tpresent = [t for t in tids if not np.isnan(tracks[t][f]).any()]
+        if not tpresent:
+            continue
+        sim = box_ious(np.array([rows[k][f] for k in present]), np.array([tracks[t][f] for t in tpresent]))
+        score = sim.copy()
+        score[score < 0.5 - EPS] = 0
+        r, c = linear_sum_assignment(-score)
+        for a, b in zip(r, c, strict=True):
+            if score[a, b] > 0 + EPS and is_distractor[present[a]]:
+                out[tpresent[b]][f] = np.nan
+    return out
 
 
 @dataclass(frozen=True)

@@ -126,6 +126,12 @@ class MotTruth:
     boxes: dict[int, np.ndarray]
     visibility: dict[int, np.ndarray] = field(default_factory=dict)
     last_frame: int = 0  # the largest frame number in the file
+    distractors: dict[int, np.ndarray] = field(default_factory=dict)  # DISTRACTOR_CLASSES rows, (N, 4) per id
+
+
+DISTRACTOR_CLASSES = (2, 7, 8, 12)
+"""MOTChallenge classes whose matched tracker boxes are neither true nor false positives (TrackEval's
+MOT17 preprocessing: person on vehicle, static person, distractor, reflection)."""
 
 def parse_mot_rows(path: Path, base: float = 1.0) -> list[tuple[int, int, tuple[float, float, float, float], float, float]]:
     """Rows ``(frame, id, box, flag, visibility)`` of a MOTChallenge-style file.
@@ -153,13 +159,26 @@ def parse_mot_rows(path: Path, base: float = 1.0) -> list[tuple[int, int, tuple[
 
 
 def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
-    """Parse a MOTChallenge ``gt.txt`` (rows with flag 0 are ignored, as MOTChallenge does)."""
+    """Parse a MOTChallenge ``gt.txt``.
+
+    Rows with flag 0 are not truth, as MOTChallenge reads them; those of a distractor class
+    (:data:`DISTRACTOR_CLASSES`, class column 8 in the random scenes: objects that are not
+    targets) go to ``MotTruth.distractors``, which the many-target scores use as TrackEval
+    does (``pipeline.eval.mot.drop_distractor_matches``).
+    """
     boxes: dict[int, np.ndarray] = {}
     vis: dict[int, np.ndarray] = {}
+    distractors: dict[int, np.ndarray] = {}
     last = 0
-    for frame, tid, box, flag, v in parse_mot_rows(path, base):
+    classes = _mot_classes(path)
+    for (frame, tid, box, flag, v), cls in zip(parse_mot_rows(path, base), classes, strict=True):
         last = max(last, frame)
-        if flag == 0 or frame > n_frames:
+        if frame > n_frames:
+            continue
+        if cls in DISTRACTOR_CLASSES:
+            distractors.setdefault(tid, np.full((n_frames, 4), np.nan))[frame - 1] = box
+            continue
+        if flag == 0:
             continue
         if tid not in boxes:
             boxes[tid] = np.full((n_frames, 4), np.nan)
@@ -168,7 +187,21 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
         vis[tid][frame - 1] = min(max(v, 0.0), 1.0) if not math.isnan(box[0]) else 0.0
     if not boxes:
         raise InputError(f"{path}: no ground-truth rows")
-    return MotTruth(dict(sorted(boxes.items())), dict(sorted(vis.items())), last)
+    return MotTruth(dict(sorted(boxes.items())), dict(sorted(vis.items())), last, dict(sorted(distractors.items())))
+
+
+def _mot_classes(path: Path) -> list[int]:
+    """The class column (8th) of each row :func:`parse_mot_rows` returns; 1 where the file has none."""
+    out = []
+    for line in _read_lines(path):
+        if not line.strip():
+            continue
+        parts = [v for v in _SPLIT.split(line.strip()) if v]
+        try:
+            out.append(int(float(parts[7])) if len(parts) > 7 else 1)
+        except ValueError:
+            out.append(1)
+    return out
 
 
 def expand_sparse(boxes: np.ndarray, n_frames: int, every: int) -> np.ndarray:

@@ -97,13 +97,15 @@ class Truth:
     """Ground truth per channel: ``boxes[channel][id]`` is ``(N, 4)``, NaN rows = no truth.
 
     For a MOTChallenge ``gt.txt`` both channels share the same table (registered frames)
-    and ``visibility[id]`` holds the visibility column.
+    and ``visibility[id]`` holds the visibility column; ``distractors[id]`` ``(N, 4)`` are its
+    rows of a distractor class (objects that are not targets, see ``parse_mot_truth``).
     """
 
     boxes: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)
     visibility: dict[int, np.ndarray] = field(default_factory=dict)
     files: dict[str, str] = field(default_factory=dict)
     multi: bool = False
+    distractors: dict[int, np.ndarray] = field(default_factory=dict)
 
     @property
     def has_truth(self) -> bool:
@@ -517,7 +519,7 @@ def _load_truth(
         if mt.last_frame > n:
             warnings.append(f"{mot} has rows up to frame {mt.last_frame} for a sequence of {n} frames (ignored)")
         boxes = {c: mt.boxes for c in sources}
-        return Truth(boxes, mt.visibility, {c: str(mot) for c in sources}, multi=True)
+        return Truth(boxes, mt.visibility, {c: str(mot) for c in sources}, multi=True, distractors=mt.distractors)
     base = spec.base if gt_base is None else gt_base
     boxes: dict[str, dict[int, np.ndarray]] = {}
     files: dict[str, str] = {}

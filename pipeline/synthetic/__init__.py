@@ -66,8 +66,18 @@ def _box_lines(b: np.ndarray) -> list[str]:
     return ["0,0,0,0" if np.isnan(r).any() else ",".join(f"{x:.3f}" for x in r) for r in b]
 
 
-def _write_truth(out: Path, ids: list[int], boxes: dict[str, dict[int, np.ndarray]], vis: dict[int, np.ndarray]) -> None:
-    """``visible.txt``/``infrared.txt``/``init.txt`` for one target, a MOT ``gt.txt`` (visible truth) for several."""
+DISTRACTOR_ID_BASE = 1000
+"""Distractor rows of a random scene's ``gt.txt`` have ids ``DISTRACTOR_ID_BASE + actor index``."""
+
+
+def _write_truth(out: Path, ids: list[int], boxes: dict[str, dict[int, np.ndarray]], vis: dict[int, np.ndarray],
+                 distractors: dict[int, np.ndarray] | None = None) -> None:
+    """``visible.txt``/``infrared.txt``/``init.txt`` for one target, a MOT ``gt.txt`` (visible truth) for several.
+
+    ``distractors`` (id -> (N, 4) visible boxes of moving objects that are not targets) become
+    ``gt.txt`` rows with flag 0 and class 8 (MOTChallenge's "distractor"): not truth, and a
+    track box on one is neither a true nor a false positive (``parse_mot_truth``).
+    """
     n = next(iter(boxes["visible"].values())).shape[0]
     if len(ids) == 1:
         for ch, fname in (("visible", "visible.txt"), ("infrared", "infrared.txt")):
@@ -81,6 +91,10 @@ def _write_truth(out: Path, ids: list[int], boxes: dict[str, dict[int, np.ndarra
             if np.isnan(r).any():
                 continue
             rows.append(f"{t + 1},{tid},{r[0] + 1:.3f},{r[1] + 1:.3f},{r[2]:.3f},{r[3]:.3f},1,1,{vis[tid][t]:.3f}")
+        for did, b in (distractors or {}).items():
+            r = b[t]
+            if not np.isnan(r).any():
+                rows.append(f"{t + 1},{did},{r[0] + 1:.3f},{r[1] + 1:.3f},{r[2]:.3f},{r[3]:.3f},0,8,1.000")
     (out / "gt.txt").write_text("\n".join(rows) + "\n")
 
 
@@ -149,7 +163,8 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
     The folder is in the RGBT234 layout: ``visible/*.jpg``, ``infrared/*.jpg`` (16-bit
     ``*.png`` with ``ir16``), per-channel truth ``visible.txt`` / ``infrared.txt`` (they
     differ by the drawn misregistration) and ``init.txt`` for one target or a MOT
-    ``gt.txt`` of the visible truth for several, and ``scene.json`` with every drawn
+    ``gt.txt`` of the visible truth for several (with the moving objects that are not targets
+    as distractor rows, flag 0 and class 8), and ``scene.json`` with every drawn
     parameter, the per-frame challenge flags per target (``frame_attributes``: 1-based
     inclusive frame ranges) and the scene-level ``attributes`` list.
 
@@ -160,7 +175,7 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
     """
     from pipeline.progress import Progress
     from pipeline.synthetic.family import ATTRIBUTES as FRAME_ATTRIBUTES
-    from pipeline.synthetic.family import MIN_ATTRIBUTE_FRAMES, draw_scene, frame_attributes
+    from pipeline.synthetic.family import DISTRACTOR_ROLES, MIN_ATTRIBUTE_FRAMES, draw_scene, frame_attributes
 
     if not (isinstance(seed, int) and seed >= 0):
         raise InputError(f"--seed must be a non-negative integer; got {seed!r}")
@@ -175,6 +190,8 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
     n = scene.n_frames
     boxes = {ch: {i: np.full((n, 4), np.nan) for i in ids} for ch in ("visible", "infrared")}
     vis = {i: np.zeros(n) for i in ids}
+    movers = [i for i, role in drawn.roles.items() if role in DISTRACTOR_ROLES]
+    others = {DISTRACTOR_ID_BASE + i: np.full((n, 4), np.nan) for i in movers}
     flags = {i: {a: np.zeros(n, bool) for a in FRAME_ATTRIBUTES} for i in ids}
     first_size: dict[int, float] = {}
     last_center: dict[int, tuple[float, float]] = {}
@@ -193,11 +210,15 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
                     if tb.get(tid) is not None:
                         boxes[ch][tid][t - 1] = tb[tid]
                 vis[tid][t - 1] = f.visibility.get(tid, 0.0)
+            for i in movers:
+                ob = (f.others or {}).get(i)
+                if ob is not None:
+                    others[DISTRACTOR_ID_BASE + i][t - 1] = ob
             for tid, fl in frame_attributes(drawn, t, f, first_size, last_center).items():
                 for a, v in fl.items():
                     flags[tid][a][t - 1] = v
             bar.update(1)
-    _write_truth(out, ids, boxes, vis)
+    _write_truth(out, ids, boxes, vis, others)
     present = [a for a in FRAME_ATTRIBUTES if any(int(flags[i][a].sum()) >= MIN_ATTRIBUTE_FRAMES for i in ids)]
     meta = {
         "scenario": "random",

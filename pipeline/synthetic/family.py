@@ -55,6 +55,10 @@ MIN_ATTRIBUTE_FRAMES = 5
 MAX_SPEED_PX = 12.0
 
 
+DISTRACTOR_ROLES = ("crossing", "look-alike", "warm-distractor", "companion")
+"""Roles of the moving actors that are not targets (written as distractor rows of a multi-target ``gt.txt``)."""
+
+
 @dataclass(frozen=True)
 class DrawnScene:
     """A random scene: what to render, every drawn parameter, and how to flag its frames."""
@@ -689,7 +693,7 @@ def frame_attributes(drawn: DrawnScene, t: int, frame: RenderedFrame, first_size
     out: dict[int, dict[str, bool]] = {}
     others: list[tuple[int, tuple[float, float, float, float]]] = []
     for i, a in enumerate(sc.actors):
-        if drawn.roles.get(i) in ("crossing", "look-alike", "warm-distractor", "companion") or a.target_id > 0:
+        if drawn.roles.get(i) in DISTRACTOR_ROLES or a.target_id > 0:
             cx, cy, s = a.path(float(t))
             if a.kind == "person":
                 w, h = 0.42 * a.size_px * s, a.size_px * s

@@ -113,7 +113,8 @@ class RenderedFrame:
     the target is out of view); ``visibility``: share of the target's own in-frame pixels
     that nothing nearer covers; ``in_frame``: share of the target's full box inside the
     frame; ``shade``: the visible shadow multiplier (H, W) or None; ``masks``: per target
-    its amodal alpha (H, W) in visible-frame px, when asked for.
+    its amodal alpha (H, W) in visible-frame px, when asked for; ``others``: per actor index
+    the visible-frame box of every actor that is not a target (None when out of view).
     """
 
     visible: np.ndarray
@@ -125,6 +126,7 @@ class RenderedFrame:
     in_frame: dict[int, float]
     shade: np.ndarray | None = None
     masks: dict[int, np.ndarray] | None = None
+    others: dict[int, tuple[float, float, float, float] | None] | None = None
 
 
 @dataclass(frozen=True)
@@ -477,5 +479,7 @@ class Renderer:
             area = own_area.get(tid, 0)
             visible = int((owner == tid).sum())
             visibility[tid] = (visible / area) if area else 0.0
+        others = {i: self._truth_box(placements[i][2], jx, jy)[0]
+                  for i, a in enumerate(sc.actors) if a.target_id <= 0}
         return RenderedFrame(vis_u8, ir_u8, ir_float, truth_vis, truth_ir, visibility, in_frame, shade,
-                             alphas if masks else None)
+                             alphas if masks else None, others)

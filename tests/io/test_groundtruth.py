@@ -70,3 +70,12 @@ def test_sparse_expansion():
     e = expand_sparse(a, 25, 10)
     np.testing.assert_array_equal(e[[0, 10, 20]], a)
     assert np.isnan(e[1]).all() and e.shape == (25, 4)
+
+
+def test_distractor_rows_are_not_truth_but_are_kept_as_distractors(tmp_path):
+    f = tmp_path / "gt.txt"
+    f.write_text("1,1,11,21,30,40,1,1,1\n1,1001,61,21,20,10,0,8,1\n2,1001,63,21,20,10,0,8,1\n2,5,1,1,5,5,0,1,1\n")
+    mt = parse_mot_truth(f, 2)
+    assert list(mt.boxes) == [1]  # flag 0 rows are not truth, whatever their class
+    assert list(mt.distractors) == [1001]  # class 8 (MOTChallenge's distractor) rows are kept apart
+    np.testing.assert_array_equal(mt.distractors[1001], [[60, 20, 20, 10], [62, 20, 20, 10]])
