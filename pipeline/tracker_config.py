@@ -62,7 +62,7 @@ class DualConfig(Section):
     redetect : bool
         Beyond the paper: a hidden or lost target is searched for by its filter in a region
         that widens while it is missing and, after ``redetect_global_after_frames``, at the
-        regions the STDM detector finds in the whole frame; default True.
+        regions the detector (``detection`` section) finds in the whole frame; default True.
     redetect_radius_px_per_frame : float
         The search region around a hidden target's prediction grows by this per missing
         frame, px, >= 0; default 3.

@@ -173,8 +173,9 @@ def region_candidates(center: tuple[float, float], radius: float, size: tuple[fl
 
 
 def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: PipelineConfig, limit: int) -> list[tuple[float, float]]:
-    """Centres of the STDM regions of the IR frame (the visible one without IR) about the target's size (a
-    quarter to four times its area), the closest in size first: where a lost target may be anywhere."""
+    """Centres of the detector's regions (``detection`` section; its foreground method against this frame's own
+    background) in the IR frame (the visible one without IR) about the target's size (a quarter to four times its
+    area), the closest in size first: where a lost target may be anywhere."""
     img = frames.infrared if frames.infrared is not None else frames.visible
     assert img is not None
     found = detection.detect(img, cfg.detection).regions
@@ -188,7 +189,7 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode:
                    frame_index: int) -> AppearanceCue | None:
     """Detect the target with its filter at its prediction (and at the colour cue's position when that is
     elsewhere); a missing target is also looked for, every ``redetect_every_frames``, over a region widening
-    with the missing frames and, after ``redetect_global_after_frames``, at the STDM regions of the whole
+    with the missing frames and, after ``redetect_global_after_frames``, at the detector's regions of the whole
     frame, at most ``redetect_candidates`` places a frame. None without a filter."""
     dcfg: DualConfig = cfg.dual
     acfg: app.AppearanceConfig = cfg.appearance
