@@ -70,45 +70,22 @@ def score_frame(d: Detections, boxes: list[np.ndarray], visible: list[bool],
     return want, found, counted, sum(on_target)
 
 
-class _FilesSink:
-    def __init__(self, out: Path):
-        from pipeline.sinks.detections import DetectionFiles
-
-        self.files = DetectionFiles(out)
-
-    def write(self, frames: FramePair, item: DetectItem) -> None:
-        self.files.write(frames.index, item.detections)
-
-    def checkpoint(self) -> None:
-        self.files.checkpoint()
-
-    def rollback(self) -> None:
-        self.files.rollback()
-
-    def close(self) -> None:
-        self.files.close()
+def _write_files(files, frames: FramePair, item: DetectItem) -> None:
+    files.write(frames.index, item.detections)
 
 
-class _RecordingSink:
-    def __init__(self, rec: object, channel: str):
-        self.rec, self.channel = rec, channel
+def _recording_writer(channel: str):
+    def write(rec, frames: FramePair, item: DetectItem) -> None:
+        enc = getattr(frames, f"{channel}_encoded")
+        rec.write(frames.index, (enc.data, enc.media_type) if enc is not None else None, item.image, item.detections)
 
-    def write(self, frames: FramePair, item: DetectItem) -> None:
-        enc = getattr(frames, f"{self.channel}_encoded")
-        self.rec.write(frames.index, (enc.data, enc.media_type) if enc is not None else None,  # type: ignore[attr-defined]
-                       item.image, item.detections)
-
-    def checkpoint(self) -> None:
-        self.rec.checkpoint()  # type: ignore[attr-defined]
-
-    def close(self) -> None:
-        self.rec.close()  # type: ignore[attr-defined]
+    return write
 
 
 def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = None, config_path: Path | None = None,
                rrd: bool = True, force: bool = False, progress: bool | None = None, threads: bool = True,
                **open_kw: object) -> DetectResult:
-    from pipeline.runloop import Job, run_job
+    from pipeline.runloop import AdaptedSink, Job, run_job
 
     seq = open_sequence(seq_path, **open_kw)  # type: ignore[arg-type]
     cfg = load_config(config_path, sets or [])
@@ -141,12 +118,12 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
         return DetectItem(d, img, {"detection": dt})
 
     def make_sinks() -> list:
-        sinks: list = [_FilesSink(out)]
-        if rrd:
-            from pipeline.sinks.detections import DetectionRecording
+        from pipeline.sinks.detections import DetectionFiles, DetectionRecording
 
-            sinks.append(_RecordingSink(DetectionRecording(out / "detections.rrd", ch, seq.name, cfg.detection.min_std),
-                                        ch))
+        sinks: list = [AdaptedSink(DetectionFiles(out), _write_files)]
+        if rrd:
+            rec = DetectionRecording(out / "detections.rrd", ch, seq.name, cfg.detection.min_std)
+            sinks.append(AdaptedSink(rec, _recording_writer(ch)))
         return sinks
 
     def finish(stats) -> dict[str, object]:

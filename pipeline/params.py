@@ -116,7 +116,17 @@ def declared_range(cls: type, name: str) -> Range | None:
     raise KeyError(name)
 
 
-_HINTS: dict[type, dict[str, Any]] = {}
+_CHECKS: dict[type, tuple[tuple[str, Range, bool], ...]] = {}
+
+
+def _checks(cls: type) -> tuple[tuple[str, Range, bool], ...]:
+    """``(field, range, integer)`` of every field of ``cls`` that declares a range (computed once per class)."""
+    out = _CHECKS.get(cls)
+    if out is None:
+        hints = typing.get_type_hints(cls)
+        out = _CHECKS[cls] = tuple((f.name, f.metadata["range"], hints.get(f.name) is int)
+                                   for f in dataclasses.fields(cls) if "range" in f.metadata)
+    return out
 
 
 def validate(obj: Any) -> None:
@@ -129,19 +139,12 @@ def validate(obj: Any) -> None:
         its range (an integer field also refuses floats and bools).
     """
     cls = type(obj)
-    hints = _HINTS.get(cls)
-    if hints is None:
-        hints = _HINTS[cls] = typing.get_type_hints(cls)
-    section = getattr(cls, "section", cls.__name__)
-    for f in dataclasses.fields(obj):
-        r = f.metadata.get("range")
-        if r is None:
-            continue
-        value = getattr(obj, f.name)
-        integer = hints.get(f.name) is int
+    for name, r, integer in _checks(cls):
+        value = getattr(obj, name)
         if not r.accepts(value, integer):
             kind = "an odd integer " if r.odd else "an integer " if integer else ""
-            raise ValueError(f"{section}.{f.name} must be {kind}{r.text()}; got {value!r}")
+            section = getattr(cls, "section", cls.__name__)
+            raise ValueError(f"{section}.{name} must be {kind}{r.text()}; got {value!r}")
 
 
 class Section:

@@ -160,37 +160,12 @@ class TrackItem:
         return self.result.stage_seconds
 
 
-class _CsvTrackSink:
-    def __init__(self, out: Path):
-        from pipeline.sinks.csv_sink import CsvSink
-
-        self.sink = CsvSink(out)
-
-    def write(self, frames: FramePair, item: TrackItem) -> None:
-        self.sink.write(item.result)
-
-    def checkpoint(self) -> None:
-        self.sink.checkpoint()
-
-    def rollback(self) -> None:
-        self.sink.rollback()
-
-    def close(self) -> None:
-        self.sink.close()
+def _write_csv(sink, frames: FramePair, item: TrackItem) -> None:
+    sink.write(item.result)
 
 
-class _RrdTrackSink:
-    def __init__(self, sink: object):
-        self.sink = sink
-
-    def write(self, frames: FramePair, item: TrackItem) -> None:
-        self.sink.write(frames, item.result, item.truth)  # type: ignore[attr-defined]
-
-    def checkpoint(self) -> None:
-        self.sink.checkpoint()  # type: ignore[attr-defined]
-
-    def close(self) -> None:
-        self.sink.close()  # type: ignore[attr-defined]
+def _write_rrd(sink, frames: FramePair, item: TrackItem) -> None:
+    sink.write(frames, item.result, item.truth)
 
 
 def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: PipelineConfig | None = None,
@@ -230,7 +205,7 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
         opts = replace(opts, config=config)
     from pipeline.eval import curves, evaluate
     from pipeline.io.results import TrackTable
-    from pipeline.runloop import Job, run_job
+    from pipeline.runloop import AdaptedSink, Job, run_job
 
     if opts.stop_frame is not None and opts.stop_frame < 1:
         raise InputError(f"--frames must be at least 1; got {opts.stop_frame}")
@@ -284,7 +259,9 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
         return TrackItem(result, frame_truth(seq, result) if has_truth else None)
 
     def make_sinks() -> list:
-        sinks: list = [_CsvTrackSink(out)]
+        from pipeline.sinks.csv_sink import CsvSink
+
+        sinks: list = [AdaptedSink(CsvSink(out), _write_csv)]
         if opts.rrd:
             start = f"{opts.tracker} on {seq.name} ({seq.layout}, {'+'.join(seq.channels)}): " + ", ".join(
                 f"T{t.id} {t.box}" for t in targets)
@@ -294,7 +271,7 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
             except BaseException:
                 sinks[0].close()
                 raise
-            sinks.append(_RrdTrackSink(rrd))
+            sinks.append(AdaptedSink(rrd, _write_rrd))
         return sinks
 
     def finish(stats) -> dict[str, object]:

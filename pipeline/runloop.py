@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from pipeline.errors import InputError, OutputError, describe_os_error
 from pipeline.io.sequence import FramePair, Sequence
@@ -49,6 +49,26 @@ class Sink(Protocol):
     def checkpoint(self) -> None: ...
 
     def close(self) -> None: ...
+
+
+class AdaptedSink:
+    """A :class:`Sink` over a file writer: ``write(frames, item)`` calls ``write_item(inner, frames, item)``;
+    ``checkpoint``, ``close`` and (where the writer has it) ``rollback`` go to the writer."""
+
+    def __init__(self, inner: object, write_item: Callable[[Any, FramePair, Any], None]):
+        self.inner = inner
+        self._write_item = write_item
+        if hasattr(inner, "rollback"):
+            self.rollback = inner.rollback
+
+    def write(self, frames: FramePair, item: object) -> None:
+        self._write_item(self.inner, frames, item)
+
+    def checkpoint(self) -> None:
+        self.inner.checkpoint()  # type: ignore[attr-defined]
+
+    def close(self) -> None:
+        self.inner.close()  # type: ignore[attr-defined]
 
 
 @dataclass

@@ -76,6 +76,15 @@ def write_boxes(path: Path, n: int, sep: str = ",", corners: bool = False, base:
     path.write_text("\n".join(lines) + "\n")
 
 
+def write_pair(root: Path, n: int = 6) -> Path:
+    """A two-channel RGBT234-layout folder of :func:`write_frames` with per-channel truth; returns ``root``."""
+    write_frames(root / "visible", n)
+    write_frames(root / "infrared", n, color=False)
+    write_boxes(root / "visible.txt", n)
+    write_boxes(root / "infrared.txt", n)
+    return root
+
+
 @pytest.fixture(autouse=True)
 def _no_rerun_off(monkeypatch: pytest.MonkeyPatch) -> None:
     """RERUN=off would silently disable recordings (rerun.md §6); tests always record."""

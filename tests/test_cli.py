@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from pipeline.cli import main
-from tests.conftest import write_boxes, write_frames
+from tests.conftest import write_boxes, write_frames, write_pair
 from tests.rrd_helpers import boxes_at, open_store, rows
 
 
@@ -26,11 +26,7 @@ def _run(argv, capsys):
 
 
 def _tiny(root: Path, n: int = 6) -> Path:
-    write_frames(root / "visible", n)
-    write_frames(root / "infrared", n, color=False)
-    write_boxes(root / "visible.txt", n)
-    write_boxes(root / "infrared.txt", n)
-    return root
+    return write_pair(root, n)
 
 
 def _assert_one_line_error(rc, err, match):

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -19,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import write_boxes, write_frames
+from tests.conftest import write_pair
 
 PY = sys.executable
 
@@ -72,11 +71,7 @@ def _rrd_frames(rrd: Path) -> set[int]:
 
 
 def _tiny(root: Path, n: int = 12) -> Path:
-    write_frames(root / "visible", n)
-    write_frames(root / "infrared", n, color=False)
-    write_boxes(root / "visible.txt", n)
-    write_boxes(root / "infrared.txt", n)
-    return root
+    return write_pair(root, n)
 
 
 @pytest.fixture(scope="module")

@@ -138,6 +138,11 @@ def parse_mot_rows(path: Path, base: float = 1.0) -> list[tuple[int, int, tuple[
 
     Columns: ``frame,id,x,y,w,h[,flag/conf[,class[,visibility]]]``.
     """
+    return [(f, t, b, flag, v) for f, t, b, flag, _cls, v in _mot_rows(path, base)]
+
+
+def _mot_rows(path: Path, base: float) -> list[tuple[int, int, tuple[float, float, float, float], float, int, float]]:
+    """Rows ``(frame, id, box, flag, class, visibility)``; class 1 where the file has no class column."""
     out = []
     for lineno, line in enumerate(_read_lines(path), start=1):
         if not line.strip():
@@ -153,8 +158,9 @@ def parse_mot_rows(path: Path, base: float = 1.0) -> list[tuple[int, int, tuple[
             raise InputError(f"{path}:{lineno}: malformed MOT row, frame and id must be integers, frame >= 1")
         box = row_to_box(values[2:6], "xywh", base)
         flag = values[6] if len(values) > 6 else 1.0
+        cls = int(values[7]) if len(values) > 7 and math.isfinite(values[7]) else 1
         vis = values[8] if len(values) > 8 else 1.0
-        out.append((int(frame), int(tid), box, flag, vis))
+        out.append((int(frame), int(tid), box, flag, cls, vis))
     return out
 
 
@@ -170,8 +176,7 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
     vis: dict[int, np.ndarray] = {}
     distractors: dict[int, np.ndarray] = {}
     last = 0
-    classes = _mot_classes(path)
-    for (frame, tid, box, flag, v), cls in zip(parse_mot_rows(path, base), classes, strict=True):
+    for frame, tid, box, flag, cls, v in _mot_rows(path, base):
         last = max(last, frame)
         if frame > n_frames:
             continue
@@ -188,20 +193,6 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
     if not boxes:
         raise InputError(f"{path}: no ground-truth rows")
     return MotTruth(dict(sorted(boxes.items())), dict(sorted(vis.items())), last, dict(sorted(distractors.items())))
-
-
-def _mot_classes(path: Path) -> list[int]:
-    """The class column (8th) of each row :func:`parse_mot_rows` returns; 1 where the file has none."""
-    out = []
-    for line in _read_lines(path):
-        if not line.strip():
-            continue
-        parts = [v for v in _SPLIT.split(line.strip()) if v]
-        try:
-            out.append(int(float(parts[7])) if len(parts) > 7 else 1)
-        except ValueError:
-            out.append(1)
-    return out
 
 
 def expand_sparse(boxes: np.ndarray, n_frames: int, every: int) -> np.ndarray:

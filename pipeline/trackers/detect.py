@@ -37,7 +37,7 @@ from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.io.sequence import Sequence as FrameSequence
 from pipeline.stages import kalman
-from pipeline.stages.association import get_associator, state_log_likelihoods
+from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
 from pipeline.stages.detection import Background, DetectionConfig, Region, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.types import (
@@ -75,8 +75,13 @@ class DetectState:
 
 
 def _kcfg(cfg: PipelineConfig) -> kalman.KalmanConfig:
-    a = cfg.association
-    return dataclasses.replace(cfg.kalman, model="constant_velocity", position_noise=a.position_noise,
+    return _motion_cfg(cfg.kalman, cfg.association)
+
+
+@functools.lru_cache(maxsize=8)
+def _motion_cfg(k: kalman.KalmanConfig, a: AssociationConfig) -> kalman.KalmanConfig:
+    """The tracks' constant-velocity model with the association section's noises (made once per configuration)."""
+    return dataclasses.replace(k, model="constant_velocity", position_noise=a.position_noise,
                                size_noise=a.position_noise / 4, position_std_px=a.position_std_px)
 
 
