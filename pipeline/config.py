@@ -27,6 +27,7 @@ from pipeline.stages.appearance import AppearanceConfig
 from pipeline.stages.association import AssociationConfig
 from pipeline.stages.contour import ContourConfig
 from pipeline.stages.detection import DetectionConfig
+from pipeline.stages.extent import ExtentConfig
 from pipeline.stages.histogram import HistogramConfig
 from pipeline.stages.kalman import KalmanConfig
 from pipeline.stages.levelset import LevelSetConfig
@@ -57,6 +58,8 @@ class PipelineConfig:
         The dual-channel tracker.
     appearance : AppearanceConfig
         The dual tracker's correlation filter.
+    extent : ExtentConfig
+        The dual tracker's colour extent (the box's width and height from the target's colours).
     camshift : CamShiftConfig
         OpenCV CamShift peer.
     opencv : OpenCVTrackerConfig
@@ -82,6 +85,7 @@ class PipelineConfig:
     model_update: ModelUpdateConfig = field(default_factory=ModelUpdateConfig)
     dual: DualConfig = field(default_factory=DualConfig)
     appearance: AppearanceConfig = field(default_factory=AppearanceConfig)
+    extent: ExtentConfig = field(default_factory=ExtentConfig)
     camshift: CamShiftConfig = field(default_factory=CamShiftConfig)
     opencv: OpenCVTrackerConfig = field(default_factory=OpenCVTrackerConfig)
     kalman: KalmanConfig = field(default_factory=KalmanConfig)

@@ -29,6 +29,12 @@ class DualConfig(Section):
         Beyond the paper: a correlation filter over both channels (``pipeline.stages.
         appearance``) measures position and size; it decides where the contour and the
         colour disagree; default True.
+    extent_cue : bool
+        Beyond the paper: the box's width and height also follow the target's extent in its
+        colours (``pipeline.stages.extent``), each on its own, at ``scale_rate``; the size may
+        then leave the filter's by up to ``extent.max_ratio`` per axis; default True. A walking
+        person's legs, a turning car or a cyclist change the box's aspect, which the filter's
+        scale (one factor for both axes) cannot follow.
     psr_confident : float
         A correlation-filter detection is a measurement when its peak-to-sidelobe ratio
         reaches this, >= 0; default 7. Increasing it trusts the filter less often.
@@ -152,6 +158,7 @@ class DualConfig(Section):
 
     scale_rate: float = param(0.2, ge=0, le=1)
     appearance_cue: bool = True
+    extent_cue: bool = True
     psr_confident: float = param(7.0, ge=0)
     psr_update: float = param(6.0, ge=0)
     psr_reacquire: float = param(9.0, ge=0)

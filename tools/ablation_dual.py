@@ -28,6 +28,7 @@ VARIANTS: dict[str, list[str]] = {
     "full": [],
     "-appearance": ["dual.appearance_cue=false"],
     "-redetect": ["dual.redetect=false"],
+    "-extent": ["dual.extent_cue=false"],
     "-filter-colour": ["appearance.colour=false"],
     "-filter-visible-gradients": ["appearance.visible_gradients=false"],
     "-filter-ir": ["appearance.infrared=false"],

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 
 import numpy as np
 import pytest
@@ -20,6 +21,47 @@ def test_scale_update_eq7():
     assert scale_update((20.0, 40.0), (30.0, 50.0), 0.2) == pytest.approx((22.0, 42.0))
     assert scale_update((20.0, 40.0), (30.0, 50.0), 0.0) == (20.0, 40.0)
     assert scale_update((20.0, 40.0), (30.0, 50.0), 1.0) == (30.0, 50.0)
+
+
+def test_the_colour_extent_widens_the_box_and_never_shrinks_it_below_the_filter():
+    """fused_size: a wider extent moves the width at eq. 7's rate past the filter's 1.25 bound (up to
+    ``extent.max_ratio``); a narrower one pulls only down to the filter's size; without the cue nothing changes."""
+    from pipeline.trackers.dual.cues import AppearanceCue
+    from pipeline.trackers.dual.decide import Decision
+    from pipeline.trackers.dual.update import fused_size
+    from pipeline.types import BBox, TargetStatus
+
+    dcfg = DualConfig()
+    dec = Decision(Case.APPEARANCE, BBox.from_center(50, 50, 10, 30), 1.0, TargetStatus.TRACKING, "test", True, False,
+                   "appearance")
+    cue = AppearanceCue(BBox.from_center(50, 50, 10, 30), 20.0, 1.0, False)
+    wide = BBox.from_center(50, 50, 20, 30)
+    size, app_size = fused_size((10.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, wide, 1.8)
+    assert size == pytest.approx((12.0, 30.0)) and app_size == (10.0, 30.0)
+    for _ in range(30):
+        size, _ = fused_size(size, (10.0, 30.0), dec, None, cue, dcfg, 6.0, wide, 1.8)
+    assert size == pytest.approx((18.0, 30.0))  # held at 1.8 x the filter's width
+    narrow = BBox.from_center(50, 50, 6, 20)
+    size, _ = fused_size((12.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, narrow, 1.8)
+    assert size == pytest.approx((11.6, 30.0))  # towards the filter's 10, not the extent's 6
+    off = dataclasses.replace(dcfg, extent_cue=False)
+    assert fused_size((10.0, 30.0), (10.0, 30.0), dec, None, cue, off, 6.0, None, 1.8)[0] == (10.0, 30.0)
+
+
+def test_the_box_follows_a_walking_persons_stride(tmp_path):
+    """Random development seed 14: a person given standing (10 x 38 px) walks with its legs spread (truth 15-19 px
+    wide). With the colour extent the width follows; the filter's one scale factor alone keeps it at 10."""
+    from pipeline.synthetic import synthesize_random
+
+    d = synthesize_random(tmp_path / "s", 14, targets=1, progress=False)
+    gt = np.loadtxt(d / "visible.txt", delimiter=",")
+    ratio = {}
+    for on in (True, False):
+        res = run_track(d, RunOptions(tracker="dual", out_dir=tmp_path / str(on), rrd=False, plots=False,
+                                      sets=[f"dual.extent_cue={str(on).lower()}"]))
+        table = list(csv.DictReader((res.out_dir / "targets.csv").read_text().splitlines()))
+        ratio[on] = float(np.median([float(r["w_px"]) / gt[int(r["frame"]) - 1, 2] for r in table[20:]]))
+    assert ratio[True] >= 0.85 and ratio[False] <= 0.7, ratio
 
 
 def test_acceptance_on_the_synthetic_scenes(scene, tmp_path):

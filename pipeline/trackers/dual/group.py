@@ -83,7 +83,8 @@ def _split(frames: FramePair, css: list[ColourStep], blobs: list[BBox], cfg: Pip
                     (cs.t.id,))] if i == pairs[0][0] else []
         t = dataclasses.replace(cs.t, memory=None, status=TargetStatus.OCCLUDED_PARTIAL)
         out[cs.t.id] = finish_single(frames, dataclasses.replace(cs, t=t), cfg, mode, timing,
-                                     start=blobs[j].center, events_in=ev)
+                                     start=blobs[j].center, events_in=ev,
+                                     neighbours=tuple(blobs[k] for _, k in pairs if k != j))
     return out
 
 

@@ -12,6 +12,7 @@ from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
 from pipeline.stages.contour import ContourReason, ContourResult, extract_contour
+from pipeline.stages.extent import colour_extent, search_window
 from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.cues import (
     ColourStep,
@@ -50,6 +51,23 @@ def walked_in_size(size: tuple[float, float], c: ContourResult | None, rho_c: fl
     return (c.box.w if grown[0] else size[0], c.box.h if grown[1] else size[1])
 
 
+def measured_extent(cs: ColourStep, decision: Decision, cfg: PipelineConfig,
+                    neighbours: tuple[BBox, ...] = ()) -> BBox | None:
+    """The target's colour extent (frame px) around the measured position at its current size, when the colour is
+    informative, the decision let the models learn (a hidden target's colours are someone else's) and no other
+    target (``neighbours``, their boxes this frame) lies within the extent's window."""
+    if not (decision.measured and decision.learn and cs.informative and cs.bins is not None and decision.box is not None):
+        return None
+    here = BBox.from_center(decision.box.cx, decision.box.cy, cs.t.size[0], cs.t.size[1])
+    win = search_window(here, cfg.extent)
+    if any(win.iou(b) > 0 for b in neighbours):
+        return None
+    x0, y0 = cs.roi0
+    around = BBox(here.x - x0, here.y - y0, here.w, here.h)
+    e = colour_extent(cs.bins, cs.t.q, around, cfg.extent)
+    return None if e is None else BBox(e.x + x0, e.y + y0, e.w, e.h)
+
+
 def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
     """Where the level set starts: the filter's detection when it is confident, the mean shift when its colour
     match is good (or the paper's way, without the channel weighting or the motion prior), else the prediction."""
@@ -61,10 +79,12 @@ def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
 
 
 def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
-                  start: tuple[float, float] | None = None, events_in: list[Event] | None = None):
+                  start: tuple[float, float] | None = None, events_in: list[Event] | None = None,
+                  neighbours: tuple[BBox, ...] = ()):
     """Contour, decision, size, models and motion for one target that is not merged: (new state, result, events).
 
-    ``start`` forces a cold contour start there (a blob after a split), which starts the re-merge hold."""
+    ``start`` forces a cold contour start there (a blob after a split), which starts the re-merge hold;
+    ``neighbours`` are the other targets' boxes this frame."""
     dcfg: DualConfig = cfg.dual
     t, prior = cs.t, cs.prior
     ir = frames.infrared if mode in ("dual", "ir") else None
@@ -105,7 +125,9 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: 
         decision = Decision(Case.CONTOUR, c.box, 1.0, TargetStatus.TRACKING, "split-blob", True, False, "levelset")
 
     # size, output box, models
-    size, app_size = fused_size(t.size, t.app_size, decision, c, cue, dcfg, cfg.contour.min_contrast)
+    extent = measured_extent(cs, decision, cfg, neighbours) if dcfg.extent_cue else None
+    size, app_size = fused_size(t.size, t.app_size, decision, c, cue, dcfg, cfg.contour.min_contrast, extent,
+                                cfg.extent.max_ratio)
     entering = t.entering
     walked_in = walked_in_size(size, c, rho_c, entering, dcfg) if any(entering) else None
     if walked_in is not None:  # its first clean contour shows what the frame's border hid

@@ -84,7 +84,8 @@ def step(state: DualState, frames: FramePair, cfg: PipelineConfig) -> tuple[Dual
         if cs.t.status == TargetStatus.MERGED:  # its group dissolved without a visible split
             ev.append(Event(EventKind.SPLIT, f"T{i} separated (merge test no longer holds)", (i,)))
             start = cs.box_prior.center
-        done[i] = finish_single(frames, cs, cfg, state.mode, timing, start=start, events_in=ev)
+        others = tuple(b for j, b in live.items() if j != i)
+        done[i] = finish_single(frames, cs, cfg, state.mode, timing, start=start, events_in=ev, neighbours=others)
     new, results, events = [], [], []
     for t in state.targets:
         nt, r, ev = done[t.id]

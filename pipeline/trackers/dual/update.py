@@ -24,14 +24,18 @@ def scale_update(h: tuple[float, float], h_contour: tuple[float, float], rate: f
 
 def fused_size(size: tuple[float, float], app_size: tuple[float, float], decision: Decision,
                contour: ContourResult | None, cue: AppearanceCue | None, dcfg: DualConfig,
-               min_contrast: float) -> tuple[tuple[float, float], tuple[float, float]]:
+               min_contrast: float, extent: BBox | None = None,
+               extent_ratio: float = 1.0) -> tuple[tuple[float, float], tuple[float, float]]:
     """The size after this frame and the filter's own size: ``(size, app_size)``.
 
     The filter's size follows its scale estimate alone, when it is confident. The size follows the same
     change, then eq. 7 towards the contour's size when the contour is clean and clearly contrasted; with a
     filter, only a contour within ``scale_agree_ratio`` of the filter's size counts, and the size stays
     within that ratio of it. A contour that covers part of the target, or leaks into a neighbour, so
-    cannot drag the size: it is measured against a size it never entered."""
+    cannot drag the size: it is measured against a size it never entered. With a filter, the colour
+    ``extent`` (when measured) moves width and height each at eq. 7's rate towards it where it is larger
+    than the filter's size (a smaller one means part of the target has the background's colours), and
+    the size may then exceed the filter's by ``extent_ratio`` per axis."""
     if not decision.measured:
         return size, app_size
     filt = cue is not None and dcfg.appearance_cue
@@ -45,8 +49,13 @@ def fused_size(size: tuple[float, float], app_size: tuple[float, float], decisio
         cw, ch = contour.box.w, contour.box.h
         if not filt or (1 / r <= cw / app_size[0] <= r and 1 / r <= ch / app_size[1] <= r):
             base = scale_update(base, (cw, ch), dcfg.scale_rate)
+    if extent is not None and filt:
+        # the colour shows where a target is wider or taller than the filter's size; a smaller extent only
+        # means that part of it has the background's colours
+        base = scale_update(base, (max(extent.w, app_size[0]), max(extent.h, app_size[1])), dcfg.scale_rate)
     if filt:
-        base = (min(max(base[0], app_size[0] / r), app_size[0] * r), min(max(base[1], app_size[1] / r), app_size[1] * r))
+        up = max(r, extent_ratio) if dcfg.extent_cue else r
+        base = (min(max(base[0], app_size[0] / r), app_size[0] * up), min(max(base[1], app_size[1] / r), app_size[1] * up))
     return base, app_size
 
 
