@@ -72,6 +72,10 @@ class DualConfig(Section):
     redetect_radius_px_per_frame : float
         The search region around a hidden target's prediction grows by this per missing
         frame, px, >= 0; default 3.
+    redetect_last_seen : bool
+        The widening search region lies around the hidden target's last clean measurement as
+        well as around its prediction (the candidates shared between the two), so that a
+        target that turned or stopped while hidden is found where it was; default True.
     redetect_global_after_frames : int
         Missing frames after which the whole frame is searched, >= 1; default 12.
     redetect_every_frames : int
@@ -171,6 +175,7 @@ class DualConfig(Section):
     motion_prior: bool = True
     redetect: bool = True
     redetect_radius_px_per_frame: float = param(3.0, ge=0)
+    redetect_last_seen: bool = True
     redetect_global_after_frames: int = param(12, ge=1)
     redetect_every_frames: int = param(2, ge=1)
     redetect_candidates: int = param(12, ge=1)

@@ -185,12 +185,29 @@ def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: Pipeline
     return [r.box.center for r in near[:limit]]
 
 
+def last_seen(t: DualTarget, dcfg: DualConfig) -> tuple[float, float] | None:
+    """Centre of the target's last clean measurement, where the widened search also looks (None without one or
+    with ``redetect_last_seen`` off)."""
+    if not dcfg.redetect_last_seen or not t.history:
+        return None
+    return (t.history[-1][1], t.history[-1][2])
+
+
+def recent_speed(t: DualTarget) -> float:
+    """The target's speed over its recent clean measurements, px per frame (0 with fewer than two)."""
+    if len(t.history) < 2:
+        return 0.0
+    a, b = t.history[0], t.history[-1]
+    return math.hypot(b[1] - a[1], b[2] - a[2]) / max(b[0] - a[0], 1.0)
+
+
 def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
                    frame_index: int) -> AppearanceCue | None:
     """Detect the target with its filter at its prediction (and at the colour cue's position when that is
     elsewhere); a missing target is also looked for, every ``redetect_every_frames``, over a region widening
     with the missing frames and, after ``redetect_global_after_frames``, at the detector's regions of the whole
-    frame, at most ``redetect_candidates`` places a frame. None without a filter."""
+    frame, at most ``redetect_candidates`` places a frame; the widening region is searched around the prediction
+    and around where the target was last seen. None without a filter."""
     dcfg: DualConfig = cfg.dual
     acfg: app.AppearanceConfig = cfg.appearance
     t = cs.t
@@ -220,8 +237,16 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode:
             if t.missing >= dcfg.redetect_global_after_frames:
                 cands += frame_candidates(frames, size, cfg, dcfg.redetect_candidates)
             else:
-                radius = 0.5 * math.hypot(*size) + dcfg.redetect_radius_px_per_frame * t.missing
-                cands += region_candidates(cs.y0, radius, size, W, H, dcfg.redetect_candidates, turn)
+                rate = max(dcfg.redetect_radius_px_per_frame, recent_speed(t) if dcfg.redetect_last_seen else 0.0)
+                radius = 0.5 * math.hypot(*size) + rate * t.missing
+                centres = [cs.y0]
+                seen = last_seen(t, dcfg)
+                if seen is not None and math.hypot(seen[0] - cs.y0[0], seen[1] - cs.y0[1]) > 0.5 * min(size):
+                    # a target that turned or stopped while hidden is near where it was last seen, not ahead
+                    centres.append(seen)
+                per = -(-dcfg.redetect_candidates // len(centres))
+                for c0 in centres:
+                    cands += region_candidates(c0, radius, size, W, H, per, turn)
         for c in cands:
             d = app.detect(t.appearance, vis, ir, c, acfg, size=size, with_scale=False)
             if d.psr > best.psr:

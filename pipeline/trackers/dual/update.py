@@ -92,11 +92,17 @@ def update_appearance(model: app.AppearanceModel | None, frames_vis, frames_ir, 
 
 def motion_update(cs: ColourStep, decision: Decision, out: BBox, frame: int, dcfg: DualConfig, kcfg,
                   history: tuple) -> tuple[kalman.GaussianState, tuple, BBox]:
-    """The Kalman filter after this frame: corrected by the measurement (its noise scaled per case), or coasting
-    (restarted at an occlusion's onset from a line through the recent clean measurements, stopped once lost).
+    """The Kalman filter after this frame: corrected by the measurement (its noise scaled per case), restarted at
+    rest on a target found again after it was lost or by the widened search, or coasting (restarted at an
+    occlusion's onset from a line through the recent clean measurements, stopped once lost).
     Returns the state, the history and the output box (moved to the restarted coast)."""
     t, prior = cs.t, cs.prior
     Hm, Rm = kalman.measurement_model(kcfg)
+    if decision.measured and decision.case == Case.REACQUIRED and (t.status == TargetStatus.LOST or decision.why == "redetected"):
+        # found again after it was given up, or by the widened search: the jump from where it was believed to be
+        # is not its motion; the filter restarts at the measurement, at rest
+        kf = kalman.init_state(out, kcfg)
+        return kf, ((float(frame), out.cx, out.cy, out.w, out.h),), out
     if decision.measured:
         kf = kalman.correct(prior, kalman.box_measurement(out), Hm, Rm * max(decision.noise, 1e-6), kcfg).state
         if decision.case in (Case.CONTOUR, Case.APPEARANCE) and decision.status == TargetStatus.TRACKING:
