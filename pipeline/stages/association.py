@@ -56,6 +56,10 @@ class AssociationConfig(Section):
         ... within its first this many frames (N), >= 1 and >= ``confirm_hits``; default 5.
     max_misses : int
         A confirmed track is lost after this many frames without a detection, >= 1; default 30.
+    coast_per_hit : float
+        ... or after more frames without one than this many times the detections it has had,
+        >= 0; default 0.5: a track confirmed on a few detections of a passing shadow or a ghost
+        coasts a few frames, not ``max_misses``.
     max_merged_frames : int
         ... or after this many frames merged into another target's blob, >= 1; default 90.
     position_noise : float
@@ -81,6 +85,7 @@ class AssociationConfig(Section):
     confirm_hits: int = param(3, ge=1)
     confirm_window: int = param(5, ge=1)
     max_misses: int = param(30, ge=1)
+    coast_per_hit: float = param(0.5, ge=0)
     max_merged_frames: int = param(90, ge=1)
     position_noise: float = param(0.5, gt=0)
     position_std_px: float = param(2.0, gt=0)

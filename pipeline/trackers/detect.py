@@ -12,7 +12,8 @@ The system of the ROI feature-matching fusion paper, no initial boxes needed:
    (``association.associator``: Hungarian, or CHNN);
 5. update matched tracks (box and template chip), coast the others; unmatched detections
    start tentative tracks, confirmed after M of N frames; a track missed ``max_misses``
-   frames, or predicted out of the frame, is lost.
+   frames, or more than ``coast_per_hit`` times the detections it has had, or predicted out
+   of the frame, is lost.
 
 Statuses: ``tentative`` (not yet confirmed; in targets.csv, not in tracks.csv),
 ``tracking``, ``merged`` (not detected on its own but its prediction lies inside a detected
@@ -224,7 +225,7 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
             if status == TargetStatus.TENTATIVE:
                 if age >= a.confirm_window:  # failed M of N: dropped without ever being reported
                     continue
-            elif misses > a.max_misses or box.clip(W, H).area < 0.25 * box.area:
+            elif misses > min(a.max_misses, a.coast_per_hit * hits) or box.clip(W, H).area < 0.25 * box.area:
                 status = TargetStatus.LOST
                 why = "left the frame" if box.clip(W, H).area < 0.25 * box.area else f"{misses} frames without a detection"
                 events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))

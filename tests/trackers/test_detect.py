@@ -58,3 +58,32 @@ def test_detect_initialises_the_dual_tracker(scene, tmp_path):
     assert len(init) == 2  # the two people, found in the first frames
     m = res.summary["metrics"]
     assert m["idf1"] >= 0.9 and m["p20"] >= 0.9
+
+
+def _blob_frames(n_on: int, n_total: int):
+    """IR frames of a warm 12 x 30 px person on noise, walking right 2 px a frame for ``n_on`` frames, then gone."""
+    from pipeline.io.sequence import FramePair
+
+    rng = np.random.default_rng(3)
+    for k in range(n_total):
+        ir = (60 + rng.normal(0, 2, (120, 160))).clip(0, 255).astype(np.uint8)
+        if k < n_on:
+            ir[40:70, 30 + 2 * k:42 + 2 * k] = 140
+        yield FramePair(k + 1, None, ir)
+
+
+@pytest.mark.parametrize("coast_per_hit,lost_at", [(0.5, 8), (100.0, 36)])
+def test_a_track_seen_a_few_times_coasts_a_few_frames(coast_per_hit, lost_at):
+    """Confirmed after 3 detections, seen in frames 1-5, then gone: lost once its misses exceed coast_per_hit x 5
+    (2.5: its 3rd missing frame, frame 8), not after association.max_misses (30: frame 36) of coasting on nothing."""
+    from pipeline.config import load_config
+    from pipeline.trackers.detect import init, step
+    from pipeline.types import TargetStatus
+
+    cfg = load_config(None, [f"association.coast_per_hit={coast_per_hit}"])
+    state, lost = None, None
+    for fp in _blob_frames(5, 40):
+        state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
+        if lost is None and any(r.status == TargetStatus.LOST for r in res.targets):
+            lost = fp.index
+    assert lost == lost_at
