@@ -74,8 +74,9 @@ class DualConfig(Section):
         frame, px, >= 0; default 3.
     redetect_last_seen : bool
         The widening search region lies around the hidden target's last clean measurement as
-        well as around its prediction (the candidates shared between the two), so that a
-        target that turned or stopped while hidden is found where it was; default True.
+        well as around its prediction (the candidates shared between the two), and widens at
+        the target's recent speed where that exceeds ``redetect_radius_px_per_frame``, so that
+        a target that turned or stopped while hidden is found where it was; default True.
     redetect_global_after_frames : int
         Missing frames after which the whole frame is searched, >= 1; default 12.
     redetect_every_frames : int

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.stages.extent import ExtentConfig, colour_extent, surround_histogram, target_mask
+from pipeline.stages.extent import (
+    ExtentConfig,
+    colour_extent,
+    surround_histogram,
+    target_mask,
+    trimmed_range,
+)
 from pipeline.types import BBox
 
 EXACT = ExtentConfig(trim_fraction=0.0)
@@ -83,3 +89,15 @@ def test_a_target_at_the_frame_border_is_measured():
 def test_declared_ranges_are_enforced(name, value):
     with pytest.raises(ValueError, match=f"extent.{name}"):
         ExtentConfig(**{name: value})
+
+
+def test_trimmed_range_equals_numpys_percentiles_to_the_last_bit():
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        counts = rng.integers(0, 8, rng.integers(1, 60))
+        if counts.sum() == 0:
+            continue
+        values = np.repeat(np.arange(counts.size), counts)
+        for trim in (0.01, 0.02, 0.1, 0.2):
+            ref = tuple(float(v) for v in np.percentile(values, [100 * trim, 100 * (1 - trim)]))
+            assert trimmed_range(counts, trim) == ref

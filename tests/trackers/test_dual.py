@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import dataclasses
 
 import numpy as np
 import pytest
@@ -25,7 +24,8 @@ def test_scale_update_eq7():
 
 def test_the_colour_extent_widens_the_box_and_never_shrinks_it_below_the_filter():
     """fused_size: a wider extent moves the width at eq. 7's rate past the filter's 1.25 bound (up to
-    ``extent.max_ratio``); a narrower one pulls only down to the filter's size; without the cue nothing changes."""
+    ``extent.max_ratio``); a narrower one pulls only down to the filter's size; without the cue the size stays within
+    ``scale_agree_ratio`` of the filter's."""
     from pipeline.trackers.dual.cues import AppearanceCue
     from pipeline.trackers.dual.decide import Decision
     from pipeline.trackers.dual.update import fused_size
@@ -44,8 +44,9 @@ def test_the_colour_extent_widens_the_box_and_never_shrinks_it_below_the_filter(
     narrow = BBox.from_center(50, 50, 6, 20)
     size, _ = fused_size((12.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, narrow, 1.8)
     assert size == pytest.approx((11.6, 30.0))  # towards the filter's 10, not the extent's 6
-    off = dataclasses.replace(dcfg, extent_cue=False)
-    assert fused_size((10.0, 30.0), (10.0, 30.0), dec, None, cue, off, 6.0, None, 1.8)[0] == (10.0, 30.0)
+    # without the cue (the caller passes no extent and a ratio of 1) the size is held within scale_agree_ratio
+    assert fused_size((15.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, None, 1.0)[0] == pytest.approx((12.5, 30.0))
+    assert fused_size((15.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, None, 1.8)[0] == pytest.approx((15.0, 30.0))
 
 
 def test_the_box_follows_a_walking_persons_stride(tmp_path):

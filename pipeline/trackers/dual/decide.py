@@ -44,6 +44,8 @@ from pipeline.stages.contour import ContourReason
 from pipeline.tracker_config import DualConfig
 from pipeline.types import BBox, TargetStatus
 
+REDETECTED = "redetected"  # ``why`` of a target taken back by the widened or whole-frame search
+
 
 class Case(enum.StrEnum):
     """Where a frame's measurement of a target came from (``targets.csv`` ``decision``, the .rrd timeline)."""
@@ -197,7 +199,7 @@ def decide(ev: Evidence, cfg: DualConfig) -> Decision:
             and (near_prior(ev.appearance_box, ev, cfg) or ev.redetected and colour_agrees)):  # type: ignore[arg-type]
         on_contour = contour_clean and not cut and contour_agrees(contour, ev, cfg)  # type: ignore[arg-type]
         return Decision(Case.REACQUIRED, contour if on_contour else ev.appearance_box, 1.5, TargetStatus.TRACKING,
-                        "redetected" if ev.redetected else "appearance-near-prediction", False, False,
+                        REDETECTED if ev.redetected else "appearance-near-prediction", False, False,
                         "levelset" if on_contour else "appearance")
     if contour_clean and not cut and near_prior(contour, ev, cfg) and not confident_elsewhere(ev, cfg):  # type: ignore[arg-type]
         if not ev.colour_informative or _good(ev.rho_contour, cfg.reacquire_rho) or math.isnan(ev.rho_contour):

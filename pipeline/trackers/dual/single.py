@@ -127,7 +127,7 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: 
     # size, output box, models
     extent = measured_extent(cs, decision, cfg, neighbours) if dcfg.extent_cue else None
     size, app_size = fused_size(t.size, t.app_size, decision, c, cue, dcfg, cfg.contour.min_contrast, extent,
-                                cfg.extent.max_ratio)
+                                cfg.extent.max_ratio if dcfg.extent_cue else 1.0)
     entering = t.entering
     walked_in = walked_in_size(size, c, rho_c, entering, dcfg) if any(entering) else None
     if walked_in is not None:  # its first clean contour shows what the frame's border hid

@@ -13,7 +13,7 @@ from pipeline.stages.model_update import UpdateDecision, selective_update, shoul
 from pipeline.stages.motion import coast_start, stop
 from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.cues import AppearanceCue, ColourStep
-from pipeline.trackers.dual.decide import Case, Decision
+from pipeline.trackers.dual.decide import REDETECTED, Case, Decision
 from pipeline.types import BBox, TargetStatus
 
 
@@ -35,7 +35,7 @@ def fused_size(size: tuple[float, float], app_size: tuple[float, float], decisio
     cannot drag the size: it is measured against a size it never entered. With a filter, the colour
     ``extent`` (when measured) moves width and height each at eq. 7's rate towards it where it is larger
     than the filter's size (a smaller one means part of the target has the background's colours), and
-    the size may then exceed the filter's by ``extent_ratio`` per axis."""
+    the size may exceed the filter's by ``extent_ratio`` per axis (1: by ``scale_agree_ratio`` only)."""
     if not decision.measured:
         return size, app_size
     filt = cue is not None and dcfg.appearance_cue
@@ -54,7 +54,7 @@ def fused_size(size: tuple[float, float], app_size: tuple[float, float], decisio
         # means that part of it has the background's colours
         base = scale_update(base, (max(extent.w, app_size[0]), max(extent.h, app_size[1])), dcfg.scale_rate)
     if filt:
-        up = max(r, extent_ratio) if dcfg.extent_cue else r
+        up = max(r, extent_ratio)
         base = (min(max(base[0], app_size[0] / r), app_size[0] * up), min(max(base[1], app_size[1] / r), app_size[1] * up))
     return base, app_size
 
@@ -98,7 +98,7 @@ def motion_update(cs: ColourStep, decision: Decision, out: BBox, frame: int, dcf
     Returns the state, the history and the output box (moved to the restarted coast)."""
     t, prior = cs.t, cs.prior
     Hm, Rm = kalman.measurement_model(kcfg)
-    if decision.measured and decision.case == Case.REACQUIRED and (t.status == TargetStatus.LOST or decision.why == "redetected"):
+    if decision.measured and decision.case == Case.REACQUIRED and (t.status == TargetStatus.LOST or decision.why == REDETECTED):
         # found again after it was given up, or by the widened search: the jump from where it was believed to be
         # is not its motion; the filter restarts at the measurement, at rest
         kf = kalman.init_state(out, kcfg)
