@@ -98,11 +98,16 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
     per_frame: list[int] = []
     det_s = [0.0]
 
+    from pipeline.io.background import sequence_background
+
+    source = sequence_background(seq, ch, cfg.detection)
     background = [None]
 
     def step(fp: FramePair) -> DetectItem:
         img = getattr(fp, ch)
         t0 = time.perf_counter()
+        if source is not None:
+            background[0] = source.at(fp.index)
         d = detect(to_grey(img), cfg.detection, background[0], fp.visible if ch == "infrared" else None)
         background[0] = d.background
         dt = time.perf_counter() - t0

@@ -22,6 +22,7 @@ from pipeline.errors import InputError
 from pipeline.io.init import resolve_init
 from pipeline.io.sequence import FramePair, Sequence, open_sequence
 from pipeline.trackers import DEFAULT_TRACKER, Engine, make_tracker
+from pipeline.trackers.base import attach_sequence
 from pipeline.types import BBox, FrameResult, FrameTruth, InitTarget, TruthMatch
 
 RUN_FILES = ("tracks.csv", "targets.csv", "run.rrd", "summary.json", "plots")
@@ -87,6 +88,7 @@ def track(
     cfg = config or PipelineConfig()
     targets = resolve_init(seq, list(init) if init else None)
     engine = make_tracker(tracker, cfg)
+    attach_sequence(engine, seq)
     return [s.result for s in iter_track(seq, engine, targets)]
 
 
@@ -212,6 +214,7 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
     seq = open_sequence(seq_path, channel=opts.channel, align=opts.align, gt_base=opts.gt_base)
     cfg = opts.config if opts.config is not None else load_config(opts.config_path, opts.sets)
     engine = make_tracker(opts.tracker, cfg)
+    attach_sequence(engine, seq)
     from pipeline.trackers import NEEDS_NO_INIT, detect_init
 
     detected_ids = opts.tracker in NEEDS_NO_INIT or (opts.detect and not opts.init and opts.init_file is None)

@@ -48,16 +48,44 @@ class DetectionConfig(Section):
         (:func:`foreground`), so that the edges a real scene has of its own (a road band, a
         skyline, a tree shadow) are not regions; ``stdm``: the paper's, the regions of the
         thresholded STDM alone.
+    background_init : str
+        Where the background comes from. ``sequence`` (default, when the runner can read the
+        sequence's frames in any order, as it can for every folder layout): the per-pixel
+        median of ``background_samples`` frames spread over the sequence
+        (:func:`median_background`), each registered to the first against camera shake; a
+        target is in it only where it stands for more than half of the samples, and it is
+        not updated. ``first-frame``: the first frame's spatial median
+        (:func:`bootstrap_background`), then a running update (``background_step``); a
+        target present in the first frame or moving slowly is absorbed into it. A frame
+        given to :func:`detect` without a background is always bootstrapped.
+    background_samples : int
+        Frames the ``sequence`` background is taken over, in [3, 101]; default 25 (more
+        lowers the noise of the estimate; its cost is one frame read each).
+    background_quantile : float
+        The ``sequence`` background of a pixel is this quantile of its samples, in [0, 1];
+        default 0.25: a target is warmer than what it covers, so a lower quantile keeps a
+        pixel's background right unless a target covers it in 3/4 of the samples (0.5, the
+        median, lets one that lingers for half the sequence into it; lower values bias the
+        estimate by the noise, which the foreground threshold's median offset absorbs).
+    background_window_frames : int
+        A long sequence's background is re-estimated for every block of this many frames,
+        from samples spread over the block and half a block either side (lighting and
+        parked objects change over minutes), >= 10; default 400.
+    max_shift_px : float
+        Largest camera shake registered, px, in [0, 16]: every frame's translation against
+        the ``sequence`` background (phase correlation, searched within this radius) is
+        undone before the comparison; default 4; 0 disables (``jitter_px`` alone then
+        absorbs the shake).
     background_fraction : float
-        The first frame's background is its median over a window of this share of the
-        frame's shorter side, in (0, 1]; default 0.5 (larger than any target, so a target is
-        not its own background).
+        The ``first-frame`` background is the first frame's median over a window of this
+        share of the frame's shorter side, in (0, 1]; default 0.5 (larger than any target,
+        so a target is not its own background).
     background_step : float
-        Afterwards the background moves towards each frame by at most this many grey levels
-        (an approximate running median; eight times as fast on the second frame, falling
-        with the square root of the frames seen to this from the 64th; a quarter of it
-        under the regions kept, so that a target that stops is absorbed only slowly), > 0;
-        default 1.
+        Afterwards the ``first-frame`` background moves towards each frame by at most this
+        many grey levels (an approximate running median; eight times as fast on the second
+        frame, falling with the square root of the frames seen to this from the 64th; a
+        quarter of it under the regions kept, so that a target that stops is absorbed only
+        slowly), > 0; default 1.
     foreground_k : float
         A pixel is foreground when it is warmer than the background (its largest value
         within ``jitter_px``) by this many robust deviations of the frame's difference from
@@ -70,8 +98,9 @@ class DetectionConfig(Section):
     fuse_visible : bool
         With ``foreground`` on the IR frame and a registered visible frame, its pixels that
         differ from the visible background (:func:`visible_foreground`) are foreground too;
-        default False: the visible background starts as the first frame, so every target
-        leaves a ghost where it stood, and shadows moving with the sun's direction fire.
+        default False: textured facades and moving cloud shadows fire in the visible
+        channel far more often than targets missing from the IR are found (see
+        docs/benchmarks.md).
     window_px : int
         Side of the STDM window, odd, in [3, 31]; default 7 (about 1/4 to 1/2 of a target's
         width: high on the target's boundary).
@@ -121,6 +150,11 @@ class DetectionConfig(Section):
 
     channel: str = param("infrared", choices=("infrared", "visible"))
     method: str = param("foreground", choices=("foreground", "stdm"))
+    background_init: str = param("sequence", choices=("sequence", "first-frame"))
+    background_samples: int = param(25, ge=3, le=101)
+    background_quantile: float = param(0.25, ge=0, le=1)
+    background_window_frames: int = param(400, ge=10)
+    max_shift_px: float = param(4.0, ge=0, le=16)
     background_fraction: float = param(0.5, gt=0, le=1)
     background_step: float = param(1.0, gt=0)
     foreground_k: float = param(4.0, ge=0)
@@ -186,11 +220,86 @@ class Detections:
 
 @dataclass(frozen=True)
 class Background:
-    """A background estimate of a still camera's frames (float32, grey levels) and how many frames it has seen."""
+    """A background estimate of a still camera's frames (float32, grey levels) and how many frames it has seen.
+
+    A ``static`` one (a sequence median, :func:`median_background`) is registered to every frame
+    and never updated; the others follow the frames (:func:`update_background`).
+    """
 
     estimate: np.ndarray = field(repr=False)
     frames: int = 0  # frames it has learned from
     visible: np.ndarray | None = field(default=None, repr=False)  # (H, W, 3) float32 CIELAB, when fused
+    static: bool = False
+
+
+def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float, float]:
+    """The translation ``(dx, dy)`` (px) that carries ``ref`` onto ``img``, ``|dx|, |dy| <= max_px``.
+
+    Phase correlation of the two (Hann-windowed, at half resolution when the frame's shorter
+    side is at least 200 px) with its peak searched only within ``max_px`` of zero, so that a
+    large moving object cannot pass for the camera's motion; sub-pixel by a parabola through
+    the peak and its neighbours on each axis. Accurate to about 0.3 px on textured frames.
+    """
+    f = 2 if min(ref.shape) >= 200 else 1
+    a = ref.astype(np.float32)
+    b = img.astype(np.float32)
+    if f > 1:
+        a = cv2.resize(a, (a.shape[1] // f, a.shape[0] // f), interpolation=cv2.INTER_AREA)
+        b = cv2.resize(b, (a.shape[1], a.shape[0]), interpolation=cv2.INTER_AREA)
+    h, w = a.shape
+    win = cv2.createHanningWindow((w, h), cv2.CV_32F)
+    fa = cv2.dft((a - float(a.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
+    fb = cv2.dft((b - float(b.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
+    cross = cv2.mulSpectrums(fb, fa, 0, conjB=True)
+    mag = cv2.magnitude(cross[..., 0], cross[..., 1])
+    cross /= np.maximum(mag, 1e-9)[..., None]
+    r = cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
+    k = int(math.ceil(max_px / f)) + 1  # one lag beyond the limit, for the parabola at the limit
+    k = min(k, h // 2 - 1, w // 2 - 1)
+    sub = np.roll(np.roll(r, k, axis=0), k, axis=1)[: 2 * k + 1, : 2 * k + 1]  # lags -k..k on both axes
+    iy, ix = np.unravel_index(int(np.argmax(sub)), sub.shape)
+
+    def vertex(m: float, c: float, p: float) -> float:
+        d = m - 2 * c + p
+        return 0.0 if d >= 0 else 0.5 * (m - p) / d
+
+    dy = float(iy - k) + (vertex(sub[iy - 1, ix], sub[iy, ix], sub[iy + 1, ix]) if 0 < iy < 2 * k else 0.0)
+    dx = float(ix - k) + (vertex(sub[iy, ix - 1], sub[iy, ix], sub[iy, ix + 1]) if 0 < ix < 2 * k else 0.0)
+    lim = float(max_px)
+    return float(np.clip(dx * f, -lim, lim)), float(np.clip(dy * f, -lim, lim))
+
+
+def shift_image(a: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """``a`` translated by ``(dx, dy)`` px (bilinear, edges replicated); ``a`` itself when both are 0."""
+    if dx == 0 and dy == 0:
+        return a
+    m = np.float32([[1, 0, dx], [0, 1, dy]])
+    return cv2.warpAffine(a, m, (a.shape[1], a.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def median_background(greys: list[np.ndarray], cfg: DetectionConfig,
+                      labs: list[np.ndarray] | None = None) -> Background:
+    """A still camera's background: the per-pixel ``cfg.background_quantile`` of ``greys`` (frames
+    spread over the sequence), each first registered to the first by :func:`frame_shift`
+    (``cfg.max_shift_px``); and the median of ``labs`` (the same frames' visible CIELAB, float32),
+    registered by the same shifts.
+
+    A target is part of it only where it covers a pixel in more than ``1 - background_quantile``
+    of the frames.
+    """
+    if not greys:
+        raise ValueError("median_background needs at least one frame")
+    ref = greys[0].astype(np.float32)
+    shifts = [(0.0, 0.0)] + [frame_shift(ref, g, cfg.max_shift_px) if cfg.max_shift_px > 0 else (0.0, 0.0)
+                             for g in greys[1:]]
+    stack = np.stack([shift_image(g.astype(np.float32), -dx, -dy) for g, (dx, dy) in zip(greys, shifts, strict=True)])
+    k = int(round(cfg.background_quantile * (len(greys) - 1)))
+    est = np.partition(stack, k, axis=0)[k]
+    vis = None
+    if labs:
+        vis = np.median(np.stack([shift_image(v, -dx, -dy) for v, (dx, dy) in zip(labs, shifts, strict=True)]),
+                        axis=0).astype(np.float32)
+    return Background(est.astype(np.float32), len(greys), vis, static=True)
 
 
 def bootstrap_background(grey: np.ndarray, cfg: DetectionConfig) -> Background:
@@ -426,7 +535,8 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
            visible: np.ndarray | None = None) -> Detections:
     """Segmentation (``cfg.method``), clean-up, splitting, regions and discrimination on one frame.
 
-    With ``foreground``, ``background`` is the previous frame's :attr:`Detections.background` (None on
+    With ``foreground``, ``background`` is a sequence's median (:func:`median_background`, registered
+    to this frame and returned unchanged) or the previous frame's :attr:`Detections.background` (None on
     the first frame, or for a frame on its own: bootstrapped from this one); ``visible``, the registered
     visible frame (BGR) of an IR ``frame``, adds its own foreground (``fuse_visible``)."""
     if cfg.method == "stdm":
@@ -438,15 +548,22 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
     grey = to_grey(frame)
     bg = background if background is not None and background.estimate.shape == grey.shape else \
         bootstrap_background(grey, cfg)
-    fg = foreground(grey, bg, cfg)
+    seen = bg
+    if bg.static and cfg.max_shift_px > 0:  # the camera's shake undone: the background moved onto this frame
+        dx, dy = frame_shift(bg.estimate, grey, cfg.max_shift_px)
+        seen = Background(shift_image(bg.estimate, dx, dy), bg.frames,
+                          None if bg.visible is None else shift_image(bg.visible, dx, dy), True)
+    fg = foreground(grey, seen, cfg)
     lab = None
     if cfg.fuse_visible and visible is not None and visible.ndim == 3 and visible.shape[:2] == grey.shape:
         lab = cv2.cvtColor(visible, cv2.COLOR_BGR2LAB).astype(np.float32)
-        if bg.visible is not None:
-            fg |= visible_foreground(lab, bg.visible, cfg)
+        if seen.visible is not None:
+            fg |= visible_foreground(lab, seen.visible, cfg)
     mask, contours = _clean_contours(fg, cfg)
     contours = split_touching(contours, cfg.split_core_fraction, cfg.split_min_core_px)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
+    if bg.static:
+        return Detections(tuple(ok), tuple(bad), np.zeros((1, 1), np.float32), mask, bg)
     # the background learns slowly only under what looks like a target (a region kept): a band or an edge the
     # first frame's estimate got wrong is absorbed at the full rate
     held = np.zeros_like(mask)

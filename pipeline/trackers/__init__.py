@@ -31,7 +31,7 @@ _FACTORIES: dict[str, Callable[[PipelineConfig], Engine]] = {
     "dual": _engine("dual", _dual.init, _dual.step, histogram.warm_up, contour.warm_up, appearance.warm_up),
     "meanshift": _engine("meanshift", _meanshift.init, _meanshift.step, histogram.warm_up),
     "kalman-camshift": _engine("kalman-camshift", _kc.init, _kc.step, histogram.warm_up),
-    "detect": lambda cfg: FunctionalEngine("detect", _detect.init, _detect.step, cfg),
+    "detect": _detect.DetectEngine,
     "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),
     "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),
     "csrt": lambda cfg: OpenCVEngine("csrt", cfg.opencv),

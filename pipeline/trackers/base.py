@@ -9,6 +9,10 @@ once per frame pair; both return a :class:`~pipeline.types.FrameResult` with one
     for frames in rest:
         result = engine.step(frames)
 
+An engine that looks at the whole sequence before its first frame (the detector's background
+of a still camera) has an ``attach(seq)`` method too, which the runner calls before ``start``
+(:func:`attach_sequence`).
+
 Our own trackers are written as pure functions over frozen per-target state,
 ``init(frames, targets, cfg) -> state`` and ``step(state, frames, cfg) -> (state,
 FrameResult)``; :class:`FunctionalEngine` holds the state between calls so the runner
@@ -65,6 +69,13 @@ class FunctionalEngine(Generic[S]):
             raise RuntimeError(f"{self.name}: step() called before start()")
         self.state, result = self._step(self.state, frames, self.cfg)
         return result
+
+
+def attach_sequence(engine: Engine, seq: object) -> None:
+    """Give ``engine`` the sequence it will run on, if it has use for it (an ``attach`` method)."""
+    attach = getattr(engine, "attach", None)
+    if attach is not None:
+        attach(seq)
 
 
 def pick_channel(frames: FramePair, preferred: str = "visible") -> str:

@@ -41,6 +41,7 @@ from pipeline.stages import kalman
 from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
 from pipeline.stages.detection import Background, DetectionConfig, Region, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
+from pipeline.trackers.base import FunctionalEngine
 from pipeline.types import (
     BBox,
     Event,
@@ -96,11 +97,45 @@ def _new_track(tid: int, r: Region, grey: np.ndarray, frame: int, kcfg: kalman.K
     return DetTrack(tid, kalman.init_state(r.box, kcfg), r.box, TargetStatus.TENTATIVE, frame, 1, 0, grey, r.box)
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[DetectState, FrameResult]:
-    """Start with no tracks (``targets`` are ignored: the detector finds them)."""
+def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig,
+         background: Background | None = None) -> tuple[DetectState, FrameResult]:
+    """Start with no tracks (``targets`` are ignored: the detector finds them); ``background``, the
+    detector's (a sequence median, :mod:`pipeline.io.background`), or None to bootstrap it from this frame."""
     ch = _channel(frames, cfg.detection.channel)
-    state = DetectState((), 1, ch)
+    state = DetectState((), 1, ch, background)
     return step(state, frames, cfg)
+
+
+class DetectEngine(FunctionalEngine[DetectState]):
+    """The detection-driven tracker as an engine; :meth:`attach` gives its detector the background of
+    the whole sequence (``detection.background_init = "sequence"``), which the runner does before
+    :meth:`start`. Not attached, it bootstraps a running background from the first frame."""
+
+    def __init__(self, cfg: PipelineConfig):
+        super().__init__("detect", init, step, cfg)
+        self._source = None
+
+    def attach(self, seq: FrameSequence) -> None:
+        from pipeline.io.background import sequence_background
+
+        ch = cfg_channel(seq, self.cfg)
+        self._source = sequence_background(seq, ch, self.cfg.detection)
+
+    def start(self, frames: FramePair, targets: Sequence[InitTarget]) -> FrameResult:
+        bg = self._source.at(frames.index) if self._source is not None else None
+        self.state, result = init(frames, targets, self.cfg, bg)
+        return result
+
+    def step(self, frames: FramePair) -> FrameResult:
+        if self.state is not None and self._source is not None:
+            self.state = dataclasses.replace(self.state, background=self._source.at(frames.index))
+        return super().step(frames)
+
+
+def cfg_channel(seq: FrameSequence, cfg: PipelineConfig) -> str:
+    """The channel the detector runs on in ``seq``: ``detection.channel`` if present, else the other."""
+    pref = cfg.detection.channel
+    return pref if pref in seq.channels else ("visible" if pref == "infrared" else "infrared")
 
 
 def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState], regions: Sequence[Region],
@@ -288,17 +323,18 @@ def detect_init(seq: FrameSequence, cfg: PipelineConfig, frames_to_scan: int = 5
     frame-1 boxes, with ids 1..N left to right (an InputError when there is none)."""
     from pipeline.errors import InputError
 
-    state: DetectState | None = None
+    engine = DetectEngine(cfg)
+    engine.attach(seq)
     n = min(frames_to_scan, seq.n_frames)
     first: dict[int, BBox] = {}
     res = None
     for fp in seq.frames():
         if fp.index > n:
             break
-        state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
+        res = engine.start(fp, []) if fp.index == 1 else engine.step(fp)
         if fp.index == 1:
             first = {r.id: r.box for r in res.targets}
-    assert state is not None and res is not None
+    assert res is not None
     found = [first[r.id] for r in res.targets if r.status == TargetStatus.TRACKING and r.id in first]
     if not found:
         raise InputError(f"--detect found no target in frame 1 confirmed within {n} frames of {seq.path}; "

@@ -7,7 +7,18 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from pipeline.stages.detection import DetectionConfig, clean, detect, discriminate, regions, segment, stdm
+from pipeline.stages.detection import (
+    DetectionConfig,
+    clean,
+    detect,
+    discriminate,
+    frame_shift,
+    median_background,
+    regions,
+    segment,
+    shift_image,
+    stdm,
+)
 
 
 def test_stdm_matches_the_slow_reference():
@@ -131,6 +142,84 @@ def test_a_still_camera_background_absorbs_static_structure_and_not_a_moving_tar
     centres = [r.centroid for r in d.regions]
     assert len(centres) == 1 and centres[0][0] == pytest.approx(60 + 79 // 2 + 7.5, abs=2.0)
     assert bg.frames == 80 and abs(float(bg.estimate[45, 30]) - float(static[45, 30])) < 8
+
+
+def textured(rng: np.random.Generator, shape=(240, 320)) -> np.ndarray:
+    return (cv2.GaussianBlur(rng.normal(90, 25, shape), (0, 0), 2) + 0).astype(np.float32)
+
+
+@pytest.mark.parametrize("dx,dy", [(1.6, -2.3), (-3.0, 0.4), (0.0, 0.0), (3.0, 4.0), (-0.5, 0.75)])
+def test_frame_shift_recovers_a_planted_translation(dx, dy):
+    rng = np.random.default_rng(5)
+    ref = textured(rng)
+    img = shift_image(ref, dx, dy) + rng.normal(0, 2, ref.shape).astype(np.float32)
+    got = frame_shift(ref, img, 4.0)
+    assert got == pytest.approx((dx, dy), abs=0.35)
+
+
+def test_frame_shift_is_not_pulled_by_a_large_moving_object():
+    """A car-sized warm block moved 40 px is not the camera's motion: the search stays within ``max_px``."""
+    rng = np.random.default_rng(6)
+    ref = textured(rng)
+    ref[120:200, 20:140] += 80
+    img = shift_image(ref, 1.0, 1.0).copy()
+    img[121:201, 21:141] -= 80  # the block, moved with the camera, then 40 px further
+    img[121:201, 61:181] += 80
+    assert frame_shift(ref, img, 4.0) == pytest.approx((1.0, 1.0), abs=0.35)
+    assert cv2.phaseCorrelate(ref.astype(np.float64), img.astype(np.float64))[0][0] > 30  # the global peak is the block
+
+
+def walking_frames(rng: np.random.Generator, n: int, shake: bool, contrast: float = 45.0):
+    """A textured IR ground with a warm person (22 x 56, +``contrast``) walking 2 px a frame from x = 20 and another
+    standing at x = 250 (rows 20-76) for the first 60 % of the frames, then walking left; camera shake up to 2 px."""
+    ground = textured(rng)
+    frames, boxes = [], []
+    for k in range(n):
+        img = ground.copy()
+        x = 20 + 2 * k
+        img[100:156, x:x + 22] += contrast
+        sx = 250 if k < 0.6 * n else 250 - 3 * (k - int(0.6 * n))
+        img[20:76, sx:sx + 22] += contrast
+        jx, jy = (rng.uniform(-2, 2), rng.uniform(-2, 2)) if shake else (0.0, 0.0)
+        img = shift_image(img, jx, jy) + rng.normal(0, 2, img.shape).astype(np.float32)
+        frames.append(np.clip(img, 0, 255).astype(np.uint8))
+        boxes.append([(x + jx, 100 + jy), (sx + jx, 20 + jy)])
+    return ground, frames, boxes
+
+
+def test_median_background_leaves_out_walking_and_lingering_targets_and_the_shake():
+    rng = np.random.default_rng(7)
+    ground, frames, _ = walking_frames(rng, 100, shake=True)
+    idx = np.linspace(0, 99, 25).round().astype(int)
+    cfg = DetectionConfig()
+    bg = median_background([frames[i] for i in idx], cfg)
+    assert bg.static and bg.frames == 25
+    dx, dy = frame_shift(ground, frames[0].astype(np.float32), 4.0)  # the estimate lies in the first sample's frame
+    err = np.abs(bg.estimate - shift_image(ground, dx, dy))[10:-10, 10:-10]
+    assert np.median(err) < 2.0 and np.percentile(err, 99) < 8.0  # neither person left in it (+45)
+    median = median_background([frames[i] for i in idx], DetectionConfig(background_quantile=0.5))
+    assert float(median.estimate[45, 260] - bg.estimate[45, 260]) > 30  # the median keeps the one standing for 60 %
+
+
+def test_a_sequence_background_registered_to_a_shaken_frame_finds_its_targets():
+    """A person standing from the first frame for 60 % of the sequence and one walking from it: the
+    sequence's background, registered to every shaken frame, gives both and nothing else."""
+    rng = np.random.default_rng(8)
+    _, frames, boxes = walking_frames(rng, 100, shake=True)
+    cfg = DetectionConfig(perimeter_px=(60.0, 600.0))
+    bg = median_background([frames[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
+    for k in (*range(0, 100, 3), 40, 55):
+        d = detect(frames[k], cfg, bg)
+        assert d.background is bg  # a static background is not updated
+        assert len(d.regions) == 2, (k, [(r.box, r.reason) for r in (*d.regions, *d.rejected)])
+        for r, (x, y) in zip(sorted(d.regions, key=lambda r: -r.centroid[1]), boxes[k], strict=True):
+            assert r.centroid == pytest.approx((x + 11, y + 28), abs=2.5)
+    # a fainter pair (+15 grey levels): the shake left in the difference raises the threshold above them
+    _, faint, _ = walking_frames(np.random.default_rng(8), 100, shake=True, contrast=15.0)
+    fbg = median_background([faint[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
+    unregistered = DetectionConfig(perimeter_px=(60.0, 600.0), max_shift_px=0.0)
+    found = [sum(len(detect(faint[k], c, fbg).regions) for k in range(0, 100, 3)) for c in (cfg, unregistered)]
+    assert found[0] == 2 * 34 and found[1] <= 0.8 * found[0], found
 
 
 def test_touching_bodies_are_split_and_one_body_is_not():

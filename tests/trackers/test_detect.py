@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pipeline.detect_run import run_detect
+from pipeline.errors import InputError
 from pipeline.run import RunOptions, run_track
 from tests.rrd_helpers import boxes_at, open_store
 
@@ -87,3 +88,45 @@ def test_a_track_seen_a_few_times_coasts_a_few_frames(coast_per_hit, lost_at):
         if lost is None and any(r.status == TargetStatus.LOST for r in res.targets):
             lost = fp.index
     assert lost == lost_at
+
+
+def test_the_sequence_background_is_read_once_per_block_and_skips_unreadable_frames(scene):
+    from pipeline.io.background import SequenceBackground
+    from pipeline.io.sequence import open_sequence
+    from pipeline.stages.detection import DetectionConfig
+
+    seq = open_sequence(scene("crossing2"))
+    src = SequenceBackground(seq, "infrared", DetectionConfig(background_window_frames=80, background_samples=9))
+    assert src.sample_indices(0) == [1, 16, 31, 46, 60, 75, 90, 105, 120]  # the block and half a block after it
+    assert src.sample_indices(1)[0] == 41 and src.sample_indices(1)[-1] == min(200, seq.n_frames)
+    a = src.at(1)
+    assert a is not None and a.static and a.frames == 9 and src.at(80) is a and src.at(81) is not a
+    frames = sorted((seq.path / "infrared").iterdir())
+    broken = SequenceBackground(seq, "infrared", DetectionConfig(background_samples=5))
+    idx = broken.sample_indices(0)
+    orig = seq.frame
+
+    def frame(i: int):
+        if i == idx[1]:
+            raise InputError(f"cannot read {frames[i - 1]}")
+        return orig(i)
+
+    seq.frame = frame  # type: ignore[method-assign]
+    assert broken.at(1).frames == 4
+
+
+def test_the_runner_gives_the_detect_tracker_the_sequence_background(scene):
+    from pipeline.config import load_config
+    from pipeline.io.sequence import open_sequence
+    from pipeline.trackers import make_tracker
+    from pipeline.trackers.base import attach_sequence
+
+    seq = open_sequence(scene("crossing2"))
+    for sets, static in (([], True), (["detection.background_init=first-frame"], False)):
+        engine = make_tracker("detect", load_config(None, sets))
+        attach_sequence(engine, seq)
+        frames = seq.frames()
+        engine.start(next(frames), [])
+        engine.step(next(frames))
+        assert engine.state.background.static is static
+        assert engine.state.background.frames == (25 if static else 2)
