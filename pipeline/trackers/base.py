@@ -21,6 +21,8 @@ sees the same interface as the OpenCV peers (whose state lives inside OpenCV obj
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from collections.abc import Callable, Sequence
 from typing import Generic, Protocol, TypeVar
 
@@ -69,6 +71,52 @@ class FunctionalEngine(Generic[S]):
             raise RuntimeError(f"{self.name}: step() called before start()")
         self.state, result = self._step(self.state, frames, self.cfg)
         return result
+
+
+class BackgroundEngine(FunctionalEngine[S]):
+    """A functional engine whose detector uses the background of the whole sequence.
+
+    Its ``init`` takes a ``background`` keyword and its state has a ``background`` field; once
+    :meth:`attach` has been given the sequence (``detection.background_init = "sequence"``), every
+    frame's background (:class:`pipeline.io.background.SequenceBackground`) is put there before the
+    frame is stepped. Not attached, the state's background is whatever ``init`` and ``step`` leave.
+    ``channel`` picks the detector's channel from the sequence's channels. With ``lazy``, what is put
+    there is a function of no arguments returning the background, so that a tracker that seldom runs
+    its detector (the dual tracker's whole-frame search) reads the sequence's samples only if it does.
+    """
+
+    def __init__(self, name: str, init: Callable[..., tuple[S, FrameResult]],
+                 step: Callable[[S, FramePair, PipelineConfig], tuple[S, FrameResult]], cfg: PipelineConfig,
+                 channel: Callable[[tuple[str, ...], PipelineConfig], str], lazy: bool = False):
+        super().__init__(name, init, step, cfg)
+        self._channel = channel
+        self._lazy = lazy
+        self._source = None
+
+    def attach(self, seq) -> None:
+        from pipeline.io.background import sequence_background
+
+        self._source = sequence_background(seq, self._channel(tuple(seq.channels), self.cfg), self.cfg.detection)
+
+    def _background(self, index: int):
+        if self._source is None:
+            return None
+        return functools.partial(self._source.at, index) if self._lazy else self._source.at(index)
+
+    def start(self, frames: FramePair, targets: Sequence[InitTarget]) -> FrameResult:
+        self.state, result = self._init(frames, targets, self.cfg, background=self._background(frames.index))
+        return result
+
+    def step(self, frames: FramePair) -> FrameResult:
+        if self.state is not None and self._source is not None:
+            self.state = dataclasses.replace(self.state, background=self._background(frames.index))
+        return super().step(frames)
+
+
+def detector_channel(channels: tuple[str, ...], cfg: PipelineConfig) -> str:
+    """The channel the detector runs on: ``detection.channel`` if present, else the other."""
+    pref = cfg.detection.channel
+    return pref if pref in channels else ("visible" if pref == "infrared" else "infrared")
 
 
 def attach_sequence(engine: Engine, seq: object) -> None:

@@ -41,7 +41,7 @@ from pipeline.stages import kalman
 from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
 from pipeline.stages.detection import Background, DetectionConfig, Region, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
-from pipeline.trackers.base import FunctionalEngine
+from pipeline.trackers.base import BackgroundEngine, detector_channel
 from pipeline.types import (
     BBox,
     Event,
@@ -106,36 +106,10 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig,
     return step(state, frames, cfg)
 
 
-class DetectEngine(FunctionalEngine[DetectState]):
-    """The detection-driven tracker as an engine; :meth:`attach` gives its detector the background of
-    the whole sequence (``detection.background_init = "sequence"``), which the runner does before
-    :meth:`start`. Not attached, it bootstraps a running background from the first frame."""
-
-    def __init__(self, cfg: PipelineConfig):
-        super().__init__("detect", init, step, cfg)
-        self._source = None
-
-    def attach(self, seq: FrameSequence) -> None:
-        from pipeline.io.background import sequence_background
-
-        ch = cfg_channel(seq, self.cfg)
-        self._source = sequence_background(seq, ch, self.cfg.detection)
-
-    def start(self, frames: FramePair, targets: Sequence[InitTarget]) -> FrameResult:
-        bg = self._source.at(frames.index) if self._source is not None else None
-        self.state, result = init(frames, targets, self.cfg, bg)
-        return result
-
-    def step(self, frames: FramePair) -> FrameResult:
-        if self.state is not None and self._source is not None:
-            self.state = dataclasses.replace(self.state, background=self._source.at(frames.index))
-        return super().step(frames)
-
-
-def cfg_channel(seq: FrameSequence, cfg: PipelineConfig) -> str:
-    """The channel the detector runs on in ``seq``: ``detection.channel`` if present, else the other."""
-    pref = cfg.detection.channel
-    return pref if pref in seq.channels else ("visible" if pref == "infrared" else "infrared")
+def make_engine(cfg: PipelineConfig) -> BackgroundEngine[DetectState]:
+    """The detection-driven tracker as an engine; attached to a sequence, its detector uses the sequence's
+    background (``detection.background_init = "sequence"``)."""
+    return BackgroundEngine("detect", init, step, cfg, detector_channel)
 
 
 def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState], regions: Sequence[Region],
@@ -323,7 +297,7 @@ def detect_init(seq: FrameSequence, cfg: PipelineConfig, frames_to_scan: int = 5
     frame-1 boxes, with ids 1..N left to right (an InputError when there is none)."""
     from pipeline.errors import InputError
 
-    engine = DetectEngine(cfg)
+    engine = make_engine(cfg)
     engine.attach(seq)
     n = min(frames_to_scan, seq.n_frames)
     first: dict[int, BBox] = {}

@@ -215,3 +215,48 @@ def test_bad_configs_rejected(item):
     with pytest.raises(ConfigError):
         load_config(None, [item])
     assert DualConfig().scale_rate == 0.2
+
+
+def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_background():
+    """Candidates for a target lost anywhere: against the frame's own spatial background a faint person on a
+    textured ground is missed (the texture raises the threshold); against the sequence's he is the one."""
+    import cv2
+
+    from pipeline.io.sequence import FramePair
+    from pipeline.stages.detection import DetectionConfig, median_background
+    from pipeline.trackers.dual.cues import frame_candidates
+
+    rng = np.random.default_rng(11)
+    ground = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 3)  # textured ground
+    frames = []
+    for k in range(25):
+        img = ground + rng.normal(0, 2, ground.shape)
+        x = 20 + 10 * k
+        img[80:136, x:x + 22] += 12
+        frames.append(np.clip(img, 0, 255).astype(np.uint8))
+    cfg = load_config(None, [])
+    bg = median_background(frames, DetectionConfig())
+    fp = FramePair(13, None, frames[12])
+    truth = (20 + 120 + 11, 108)
+    with_bg = frame_candidates(fp, (22, 56), cfg, 4, bg)
+    assert len(with_bg) == 1 and with_bg[0] == pytest.approx(truth, abs=2.0)
+    assert frame_candidates(fp, (22, 56), cfg, 4) == []
+
+
+def test_the_runner_gives_the_dual_tracker_the_sequence_background(scene):
+    from pipeline.io.sequence import open_sequence
+    from pipeline.trackers import make_tracker
+    from pipeline.trackers.base import attach_sequence
+    from pipeline.types import BBox, InitTarget
+
+    seq = open_sequence(scene("crossing2"))
+    engine = make_tracker("dual", load_config(None, []))
+    attach_sequence(engine, seq)
+    frames = seq.frames()
+    engine.start(next(frames), [InitTarget(1, BBox(*seq.truth.primary()[1][0]))])
+    engine.step(next(frames))
+    assert callable(engine.state.background) and engine.state.background().static  # read only when asked
+    plain = make_tracker("dual", load_config(None, ["detection.background_init=first-frame"]))
+    attach_sequence(plain, seq)
+    plain.start(seq.frame(1), [InitTarget(1, BBox(*seq.truth.primary()[1][0]))])
+    assert plain.state.background is None

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -17,6 +18,7 @@ from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
 from pipeline.stages import detection, kalman
+from pipeline.stages.detection import Background
 from pipeline.stages.histogram import (
     appearance_bins,
     bhattacharyya,
@@ -172,13 +174,16 @@ def region_candidates(center: tuple[float, float], radius: float, size: tuple[fl
     return pts[k * limit:(k + 1) * limit]
 
 
-def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: PipelineConfig, limit: int) -> list[tuple[float, float]]:
-    """Centres of the detector's regions (``detection`` section; its foreground method against this frame's own
-    background) in the IR frame (the visible one without IR) about the target's size (a quarter to four times its
-    area), the closest in size first: where a lost target may be anywhere."""
+def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: PipelineConfig, limit: int,
+                     background: Background | Callable[[], Background | None] | None = None
+                     ) -> list[tuple[float, float]]:
+    """Centres of the detector's regions (``detection`` section; its foreground method against ``background``, the
+    sequence's (:mod:`pipeline.io.background`), or this frame's own without one) in the IR frame (the visible one
+    without IR) about the target's size (a quarter to four times its area), the closest in size first: where a
+    lost target may be anywhere. ``background`` may be a function returning it (read only when needed)."""
     img = frames.infrared if frames.infrared is not None else frames.visible
     assert img is not None
-    found = detection.detect(img, cfg.detection).regions
+    found = detection.detect(img, cfg.detection, background() if callable(background) else background).regions
     area = max(size[0] * size[1], 1.0)
     near = [r for r in found if 0.25 <= r.box.area / area <= 4.0]
     near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
@@ -202,12 +207,14 @@ def recent_speed(t: DualTarget) -> float:
 
 
 def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
-                   frame_index: int) -> AppearanceCue | None:
+                   frame_index: int, background: Background | Callable[[], Background | None] | None = None
+                   ) -> AppearanceCue | None:
     """Detect the target with its filter at its prediction (and at the colour cue's position when that is
     elsewhere); a missing target is also looked for, every ``redetect_every_frames``, over a region widening
     with the missing frames and, after ``redetect_global_after_frames``, at the detector's regions of the whole
     frame, at most ``redetect_candidates`` places a frame; the widening region is searched around the prediction
-    and around where the target was last seen. None without a filter."""
+    and around where the target was last seen; ``background`` is the detector's (see :func:`frame_candidates`).
+    None without a filter."""
     dcfg: DualConfig = cfg.dual
     acfg: app.AppearanceConfig = cfg.appearance
     t = cs.t
@@ -235,7 +242,7 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode:
         if t.missing % dcfg.redetect_every_frames == 0:
             turn = t.missing // dcfg.redetect_every_frames
             if t.missing >= dcfg.redetect_global_after_frames:
-                cands += frame_candidates(frames, size, cfg, dcfg.redetect_candidates)
+                cands += frame_candidates(frames, size, cfg, dcfg.redetect_candidates, background)
             else:
                 rate = max(dcfg.redetect_radius_px_per_frame, recent_speed(t) if dcfg.redetect_last_seen else 0.0)
                 radius = 0.5 * math.hypot(*size) + rate * t.missing

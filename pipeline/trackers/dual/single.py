@@ -80,16 +80,17 @@ def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
 
 def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
                   start: tuple[float, float] | None = None, events_in: list[Event] | None = None,
-                  neighbours: tuple[BBox, ...] = ()):
+                  neighbours: tuple[BBox, ...] = (), background=None):
     """Contour, decision, size, models and motion for one target that is not merged: (new state, result, events).
 
     ``start`` forces a cold contour start there (a blob after a split), which starts the re-merge hold;
-    ``neighbours`` are the other targets' boxes this frame."""
+    ``neighbours`` are the other targets' boxes this frame; ``background`` the detector's, for the whole-frame
+    search of a missing target (:func:`pipeline.trackers.dual.cues.frame_candidates`)."""
     dcfg: DualConfig = cfg.dual
     t, prior = cs.t, cs.prior
     ir = frames.infrared if mode in ("dual", "ir") else None
     H, W = frames.shape
-    cue = appearance_cue(frames, cs, cfg, mode, timing, frames.index)
+    cue = appearance_cue(frames, cs, cfg, mode, timing, frames.index, background)
     clock = time.perf_counter()
 
     # the IR contour, started where the other cues put the target

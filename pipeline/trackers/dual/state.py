@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from statistics import median
 
@@ -10,6 +11,7 @@ import numpy as np
 from pipeline.stages import kalman
 from pipeline.stages.appearance import AppearanceModel
 from pipeline.stages.contour import LevelSetMemory
+from pipeline.stages.detection import Background
 from pipeline.types import BBox, TargetStatus
 
 
@@ -71,8 +73,11 @@ class GroupMemory:
 
 @dataclass(frozen=True)
 class DualState:
-    """Every target, the mode (``dual``: both channels, ``ir`` or ``visible``: one) and the merged groups."""
+    """Every target, the mode (``dual``: both channels, ``ir`` or ``visible``: one), the merged groups and the
+    detector's background of the frame (a sequence's, :mod:`pipeline.io.background`, or a function of no arguments
+    returning it; None: each frame's own)."""
 
     targets: tuple[DualTarget, ...]
     mode: str
     groups: tuple[GroupMemory, ...] = ()
+    background: Background | Callable[[], Background | None] | None = None

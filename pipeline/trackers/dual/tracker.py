@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app
 from pipeline.stages import kalman
 from pipeline.stages.contour import extract_contour
+from pipeline.stages.detection import Background
 from pipeline.stages.histogram import appearance_bins, kernel_histogram
 from pipeline.stages.merge import merge_groups
 from pipeline.tracker_config import DualConfig
@@ -28,8 +29,10 @@ def mode_of(frames: FramePair) -> str:
     return "ir" if frames.infrared is not None else "visible"
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[DualState, FrameResult]:
-    """Start on the first frame: the colour histogram, the correlation filter and the level set of every target."""
+def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig,
+         background: Background | Callable[[], Background | None] | None = None) -> tuple[DualState, FrameResult]:
+    """Start on the first frame: the colour histogram, the correlation filter and the level set of every target;
+    ``background`` is the detector's for this frame (:attr:`DualState.background`)."""
     dcfg: DualConfig = cfg.dual
     mode = mode_of(frames)
     bins, m = appearance_bins(colour_image(frames, mode), cfg.histogram)
@@ -52,7 +55,7 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) 
         results.append(TargetResult(t.id, t.box, TargetStatus.TRACKING, "init",
                                     {"levelset": c.iterations if c is not None else 0}, 1.0, "none:init", 1.0,
                                     c.contour if c is not None else (), decision="init:given"))
-    return DualState(tuple(states), mode), FrameResult(frames.index, tuple(results))
+    return DualState(tuple(states), mode, background=background), FrameResult(frames.index, tuple(results))
 
 
 def step(state: DualState, frames: FramePair, cfg: PipelineConfig) -> tuple[DualState, FrameResult]:
@@ -85,7 +88,8 @@ def step(state: DualState, frames: FramePair, cfg: PipelineConfig) -> tuple[Dual
             ev.append(Event(EventKind.SPLIT, f"T{i} separated (merge test no longer holds)", (i,)))
             start = cs.box_prior.center
         others = tuple(b for j, b in live.items() if j != i)
-        done[i] = finish_single(frames, cs, cfg, state.mode, timing, start=start, events_in=ev, neighbours=others)
+        done[i] = finish_single(frames, cs, cfg, state.mode, timing, start=start, events_in=ev, neighbours=others,
+                                background=state.background)
     new, results, events = [], [], []
     for t in state.targets:
         nt, r, ev = done[t.id]
