@@ -349,6 +349,8 @@ def _cmd_detect(a: argparse.Namespace) -> int:
 
     line = f"{res.out_dir}: {s['frames']} frames, {f('detections_per_frame', 2)} detections per frame, " \
            f"{f('ms_per_frame', 3)} ms per frame"
+    if s.get("background_seconds"):
+        line += f" (and {f('background_seconds', 2)} s for the sequence's background)"
     if "targets_scored" in s:
         line += f", recall {f('recall', 3)}, precision {f('precision', 3)} ({s['targets_scored']} visible targets)"
     print(line)

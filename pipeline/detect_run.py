@@ -1,7 +1,9 @@
 """``dualtrack detect SEQ --out DIR``: STDM detection on every frame, with its outputs and scores.
 
 Writes ``det.txt``, ``rois.csv``, ``detections.rrd`` (``pipeline.sinks.detections``) and
-``summary.json`` (frames, detections per frame, stage time, ``fps``; with ground truth,
+``summary.json`` (frames, detections per frame, the detector's time per frame and ``fps``, and
+apart from them ``background_seconds``, the time spent reading and estimating the sequence's
+background, once per block of ``detection.background_window_frames``; with ground truth,
 ``recall`` and ``precision``: a target counts when it is visible (visibility >= 0.9 in a
 synthetic scene's ``scene.json``, else any truth box) and no other target's or distractor's
 box overlaps it, and it is found when an accepted ROI's centre lies inside its box; a ROI is
@@ -102,12 +104,15 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
 
     source = sequence_background(seq, ch, cfg.detection)
     background = [None]
+    bg_s = [0.0]
 
     def step(fp: FramePair) -> DetectItem:
         img = getattr(fp, ch)
-        t0 = time.perf_counter()
         if source is not None:
+            tb = time.perf_counter()
             background[0] = source.at(fp.index)
+            bg_s[0] += time.perf_counter() - tb
+        t0 = time.perf_counter()
         d = detect(to_grey(img), cfg.detection, background[0], fp.visible if ch == "infrared" else None)
         background[0] = d.background
         dt = time.perf_counter() - t0
@@ -137,6 +142,7 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
             "detections_per_frame": float(np.mean(per_frame[:n])) if n else 0.0,
             "ms_per_frame": round(1e3 * det_s[0] / max(len(per_frame), 1), 3),
             "fps": round(len(per_frame) / det_s[0], 1) if det_s[0] > 0 else None,
+            "background_seconds": round(bg_s[0], 3),
         }
         if truth:
             extra.update({"targets_scored": int(counts[0]),
