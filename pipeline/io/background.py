@@ -2,9 +2,10 @@
 
 :class:`SequenceBackground` reads ``detection.background_samples`` frames spread over a block
 of ``detection.background_window_frames`` frames (and half a block either side) and gives
-their registered median (:func:`pipeline.stages.detection.median_background`) to every frame
-of the block. The detector's runners (``dualtrack detect``, ``--tracker detect``,
-``--detect``) make one per run when ``detection.background_init = "sequence"``.
+their registered low quantile (:func:`pipeline.stages.detection.quantile_background`) to every
+frame of the block. The detector's runners (``dualtrack detect``, ``--tracker detect``,
+``--detect``, the dual tracker's whole-frame search) make one per run when
+``detection.background_init = "sequence"``.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 
 from pipeline.errors import InputError
 from pipeline.io.sequence import Sequence
-from pipeline.stages.detection import Background, DetectionConfig, median_background, to_grey
+from pipeline.stages.detection import Background, DetectionConfig, quantile_background, to_grey
 
 
 class SequenceBackground:
@@ -32,7 +33,7 @@ class SequenceBackground:
 
     Notes
     -----
-    A sampled frame that cannot be read is left out of the median; when none of a block's
+    A sampled frame that cannot be read is left out of the estimate; when none of a block's
     can, :meth:`at` returns None and the detector bootstraps from the frame it is given.
     The block in use is cached: a sequence of N frames costs
     ``ceil(N / background_window_frames) * background_samples`` extra frame reads.
@@ -46,7 +47,7 @@ class SequenceBackground:
         self._bg: Background | None = None
 
     def sample_indices(self, block: int) -> list[int]:
-        """The 1-based frames whose median is block ``block``'s background."""
+        """The 1-based frames block ``block``'s background is estimated from."""
         n, w = self.seq.n_frames, self.cfg.background_window_frames
         lo = max(1, block * w + 1 - w // 2)
         hi = min(n, (block + 1) * w + w // 2)
@@ -76,7 +77,7 @@ class SequenceBackground:
                 labs.append(cv2.cvtColor(fp.visible, cv2.COLOR_BGR2LAB).astype(np.float32))
         if not greys or any(g.shape != greys[0].shape for g in greys):
             return None
-        return median_background(greys, self.cfg, labs if len(labs) == len(greys) else None)
+        return quantile_background(greys, self.cfg, labs if len(labs) == len(greys) else None)
 
 
 def sequence_background(seq: Sequence, channel: str, cfg: DetectionConfig) -> SequenceBackground | None:

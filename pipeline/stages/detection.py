@@ -51,10 +51,10 @@ class DetectionConfig(Section):
     background_init : str
         Where the background comes from. ``sequence`` (default, when the runner can read the
         sequence's frames in any order, as it can for every folder layout): the per-pixel
-        median of ``background_samples`` frames spread over the sequence
-        (:func:`median_background`), each registered to the first against camera shake; a
-        target is in it only where it stands for more than half of the samples, and it is
-        not updated. ``first-frame``: the first frame's spatial median
+        ``background_quantile`` of ``background_samples`` frames spread over the sequence
+        (:func:`quantile_background`), each registered to the first against camera shake; a
+        target is in it only where it covers a pixel in more than 3/4 of the samples, and it
+        is not updated. ``first-frame``: the first frame's spatial median
         (:func:`bootstrap_background`), then a running update (``background_step``); a
         target present in the first frame or moving slowly is absorbed into it. A frame
         given to :func:`detect` without a background is always bootstrapped.
@@ -224,7 +224,7 @@ class Detections:
 class Background:
     """A background estimate of a still camera's frames (float32, grey levels) and how many frames it has seen.
 
-    A ``static`` one (a sequence median, :func:`median_background`) is registered to every frame
+    A ``static`` one (the sequence's, :func:`quantile_background`) is registered to every frame
     and never updated; the others follow the frames (:func:`update_background`).
     """
 
@@ -279,7 +279,7 @@ def shift_image(a: np.ndarray, dx: float, dy: float) -> np.ndarray:
     return cv2.warpAffine(a, m, (a.shape[1], a.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
-def median_background(greys: list[np.ndarray], cfg: DetectionConfig,
+def quantile_background(greys: list[np.ndarray], cfg: DetectionConfig,
                       labs: list[np.ndarray] | None = None) -> Background:
     """A still camera's background: the per-pixel ``cfg.background_quantile`` of ``greys`` (frames
     spread over the sequence), each first registered to the first by :func:`frame_shift`
@@ -290,7 +290,7 @@ def median_background(greys: list[np.ndarray], cfg: DetectionConfig,
     of the frames.
     """
     if not greys:
-        raise ValueError("median_background needs at least one frame")
+        raise ValueError("quantile_background needs at least one frame")
     ref = greys[0].astype(np.float32)
     shifts = [(0.0, 0.0)] + [frame_shift(ref, g, cfg.max_shift_px) if cfg.max_shift_px > 0 else (0.0, 0.0)
                              for g in greys[1:]]
@@ -537,7 +537,7 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
            visible: np.ndarray | None = None) -> Detections:
     """Segmentation (``cfg.method``), clean-up, splitting, regions and discrimination on one frame.
 
-    With ``foreground``, ``background`` is a sequence's median (:func:`median_background`, registered
+    With ``foreground``, ``background`` is the sequence's (:func:`quantile_background`, registered
     to this frame and returned unchanged) or the previous frame's :attr:`Detections.background` (None on
     the first frame, or for a frame on its own: bootstrapped from this one); ``visible``, the registered
     visible frame (BGR) of an IR ``frame``, adds its own foreground (``fuse_visible``)."""

@@ -100,7 +100,7 @@ def _new_track(tid: int, r: Region, grey: np.ndarray, frame: int, kcfg: kalman.K
 def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig,
          background: Background | None = None) -> tuple[DetectState, FrameResult]:
     """Start with no tracks (``targets`` are ignored: the detector finds them); ``background``, the
-    detector's (a sequence median, :mod:`pipeline.io.background`), or None to bootstrap it from this frame."""
+    detector's (the sequence's, :mod:`pipeline.io.background`), or None to bootstrap it from this frame."""
     ch = _channel(frames, cfg.detection.channel)
     state = DetectState((), 1, ch, background)
     return step(state, frames, cfg)

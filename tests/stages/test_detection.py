@@ -13,7 +13,7 @@ from pipeline.stages.detection import (
     detect,
     discriminate,
     frame_shift,
-    median_background,
+    quantile_background,
     regions,
     segment,
     shift_image,
@@ -187,17 +187,17 @@ def walking_frames(rng: np.random.Generator, n: int, shake: bool, contrast: floa
     return ground, frames, boxes
 
 
-def test_median_background_leaves_out_walking_and_lingering_targets_and_the_shake():
+def test_quantile_background_leaves_out_walking_and_lingering_targets_and_the_shake():
     rng = np.random.default_rng(7)
     ground, frames, _ = walking_frames(rng, 100, shake=True)
     idx = np.linspace(0, 99, 25).round().astype(int)
     cfg = DetectionConfig()
-    bg = median_background([frames[i] for i in idx], cfg)
+    bg = quantile_background([frames[i] for i in idx], cfg)
     assert bg.static and bg.frames == 25
     dx, dy = frame_shift(ground, frames[0].astype(np.float32), 4.0)  # the estimate lies in the first sample's frame
     err = np.abs(bg.estimate - shift_image(ground, dx, dy))[10:-10, 10:-10]
     assert np.median(err) < 2.0 and np.percentile(err, 99) < 8.0  # neither person left in it (+45)
-    median = median_background([frames[i] for i in idx], DetectionConfig(background_quantile=0.5))
+    median = quantile_background([frames[i] for i in idx], DetectionConfig(background_quantile=0.5))
     assert float(median.estimate[45, 260] - bg.estimate[45, 260]) > 30  # the median keeps the one standing for 60 %
 
 
@@ -207,7 +207,7 @@ def test_a_sequence_background_registered_to_a_shaken_frame_finds_its_targets():
     rng = np.random.default_rng(8)
     _, frames, boxes = walking_frames(rng, 100, shake=True)
     cfg = DetectionConfig(perimeter_px=(60.0, 600.0))
-    bg = median_background([frames[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
+    bg = quantile_background([frames[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
     for k in (*range(0, 100, 3), 40, 55):
         d = detect(frames[k], cfg, bg)
         assert d.background is bg  # a static background is not updated
@@ -216,7 +216,7 @@ def test_a_sequence_background_registered_to_a_shaken_frame_finds_its_targets():
             assert r.centroid == pytest.approx((x + 11, y + 28), abs=2.5)
     # a fainter pair (+15 grey levels): the shake left in the difference raises the threshold above them
     _, faint, fboxes = walking_frames(np.random.default_rng(8), 100, shake=True, contrast=15.0)
-    fbg = median_background([faint[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
+    fbg = quantile_background([faint[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
     unregistered = DetectionConfig(perimeter_px=(60.0, 600.0), max_shift_px=0.0)
 
     def covered(c: DetectionConfig) -> float:  # share of the people's pixels that are foreground

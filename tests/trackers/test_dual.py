@@ -223,7 +223,7 @@ def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_backgr
     import cv2
 
     from pipeline.io.sequence import FramePair
-    from pipeline.stages.detection import DetectionConfig, median_background
+    from pipeline.stages.detection import DetectionConfig, quantile_background
     from pipeline.trackers.dual.cues import frame_candidates
 
     rng = np.random.default_rng(11)
@@ -235,7 +235,7 @@ def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_backgr
         img[80:136, x:x + 22] += 12
         frames.append(np.clip(img, 0, 255).astype(np.uint8))
     cfg = load_config(None, [])
-    bg = median_background(frames, DetectionConfig())
+    bg = quantile_background(frames, DetectionConfig())
     fp = FramePair(13, None, frames[12])
     truth = (20 + 120 + 11, 108)
     with_bg = frame_candidates(fp, (22, 56), cfg, 4, bg)
