@@ -219,7 +219,8 @@ def test_bad_configs_rejected(item):
 
 def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_background():
     """Candidates for a target lost anywhere: against the frame's own spatial background a faint person on a
-    textured ground is missed (the texture raises the threshold); against the sequence's he is the one."""
+    textured ground is missed or misplaced (the texture raises the threshold); against the sequence's he is
+    the one candidate, at his centre."""
     import cv2
 
     from pipeline.io.sequence import FramePair
@@ -240,7 +241,8 @@ def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_backgr
     truth = (20 + 120 + 11, 108)
     with_bg = frame_candidates(fp, (22, 56), cfg, 4, bg)
     assert len(with_bg) == 1 and with_bg[0] == pytest.approx(truth, abs=2.0)
-    assert frame_candidates(fp, (22, 56), cfg, 4) == []
+    own = frame_candidates(fp, (22, 56), cfg, 4)  # missed, or a piece of him joined to the texture
+    assert not any(abs(c[0] - truth[0]) < 4 and abs(c[1] - truth[1]) < 4 for c in own), own
 
 
 def test_the_runner_gives_the_dual_tracker_the_sequence_background(scene):
