@@ -231,6 +231,16 @@ class CamShiftConfig(Section):
         ``kalman-camshift``, in [1, 16]; default 4. 1 is the hue-only back-projection
         the paper and OpenCV's recipe use; hue alone cannot tell a brown wall from a
         shirt of its hue. The plain ``camshift`` peer always uses hue only.
+    background_weighting_scale : float
+        ``kalman-camshift``'s back-projected model is weighted against the target's
+        surround (the corrected background-weighted histogram of Ning et al. 2012,
+        :func:`pipeline.stages.camshift.background_weights`): the surround is a box this
+        many times the target's, less the target's ellipse scaled 1.2 times, on the
+        first frame; in [0, 5], default 2; 0 (and up to about 1.2, which leaves no
+        surround) is the paper's unweighted model. Colours the
+        target shares with its surround (trousers of the lawn's hue) then barely draw
+        CamShift's window out of the target. Larger surrounds weigh down colours that
+        are only far away. The plain ``camshift`` peer never weights.
     """
 
     section = "camshift"
@@ -242,6 +252,7 @@ class CamShiftConfig(Section):
     max_iterations: int = param(10, ge=1)
     epsilon_px: float = param(1.0, gt=0)
     saturation_bins: int = param(4, ge=1, le=16)
+    background_weighting_scale: float = param(2.0, ge=0, le=5)
 
 
 @dataclass(frozen=True)

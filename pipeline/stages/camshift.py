@@ -7,6 +7,7 @@ is a numpy lookup (never the 3-D ``calcBackProject`` path; docs/algorithms.md §
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -83,6 +84,31 @@ def kernel_masked_histogram(f: Feature, box: BBox) -> np.ndarray:
     h = ellipse_histogram(f.bins, float(box.cx), float(box.cy), box.w / 2.0, box.h / 2.0, f.n_bins, f.valid)[0]
     s = h.sum()
     return h / s if s > 0 else h
+
+
+def background_weights(f: Feature, box: BBox, scale: float) -> np.ndarray:
+    """Per-bin weights ``v_u = min(o* / o_u, 1)`` of the corrected background-weighted histogram
+    (Ning, Zhang, Zhang, Wu 2012): ``o`` the histogram of the surround, the pixels of ``box``
+    scaled ``scale`` times (clipped to the image) outside the ellipse of ``box`` scaled 1.2 times,
+    and ``o*`` its smallest non-zero bin. A bin absent from the surround keeps weight 1; ones when
+    the surround is empty."""
+    H, W = f.bins.shape
+    big = box.scaled(scale).clip(W, H)
+    ring = np.zeros((H, W), bool)
+    ring[int(big.y):int(math.ceil(big.y2)), int(big.x):int(math.ceil(big.x2))] = True
+    ring &= ~box_mask((H, W), box.scaled(1.2))
+    o = histogram(f, ring)
+    nz = o[o > 0]
+    if nz.size == 0:
+        return np.ones(f.n_bins)
+    return np.where(o > 0, np.minimum(nz.min() / np.maximum(o, 1e-300), 1.0), 1.0)
+
+
+def weighted_model(q: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``q`` times ``weights``, normalised (``q`` itself when nothing is left)."""
+    w = q * weights
+    s = w.sum()
+    return w / s if s > 0 else q
 
 
 def back_project(f: Feature, hist: np.ndarray) -> np.ndarray:

@@ -44,6 +44,10 @@ Beyond the paper:
   a hysteresis below Tb;
 * with ``occlusion.size_change_occludes`` off, a strong colour match is not an occlusion
   even when the CamShift area grew: its position is measured, with the last size;
+* the back-projected model is weighted against the target's surround on the first frame
+  (``camshift.background_weighting_scale``, the corrected background-weighted histogram of
+  Ning et al. 2012), so that colours the target shares with the ground barely pull CamShift's
+  window off it;
 * coasting is bounded: a prediction that leaves the frame, or ``occlusion.max_missing_frames``
   frames without a measurement, end in ``lost``, where the motion stops.
 """
@@ -63,12 +67,14 @@ from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
 from pipeline.stages.camshift import (
     back_project,
+    background_weights,
     box_mask,
     camshift,
     feature,
     histogram,
     kernel_masked_histogram,
     to_hsv,
+    weighted_model,
 )
 from pipeline.stages.histogram import bhattacharyya, bhattacharyya_distance
 from pipeline.stages.motion import coast_start, hold_rates, stop
@@ -135,6 +141,8 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) 
     for t in targets:
         mask = box_mask(image.shape, t.box)
         q = histogram(f, mask)
+        if cfg.camshift.background_weighting_scale > 0:  # beyond the paper: CBWH
+            q = weighted_model(q, background_weights(f, t.box, cfg.camshift.background_weighting_scale))
         colour = kernel_masked_histogram(fc, t.box)
         kf = kalman.init_state(t.box, cfg.kalman)
         states.append(KCTarget(t.id, kf, q, colour, TargetStatus.TRACKING, t.box, AreaReference((t.box.area,))))

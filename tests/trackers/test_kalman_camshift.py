@@ -118,3 +118,30 @@ def test_coasting_is_bounded_in_time():
         statuses.append(res.targets[0].status)
     assert statuses[8] == TargetStatus.TRACKING and statuses[-1] == TargetStatus.LOST
     assert statuses.index(TargetStatus.LOST) == 9 + 10  # the 11th frame without a measurement
+
+
+def test_background_weights_down_weight_the_colours_of_the_surround():
+    """Exact CBWH weights on a tiny feature image: the target's own bin keeps 1, the bin it shares with the
+    surround gets o* / o_u, and the surround's commonest colour the least."""
+    from pipeline.stages.camshift import Feature, background_weights, box_mask, weighted_model
+    from pipeline.types import BBox
+
+    bins = np.zeros((40, 40), np.uint8)  # bin 0: the ground
+    bins[10:30, 10:19] = 2  # bin 2: a patch of the ground's second colour, the surround's left part
+    box = BBox(16, 16, 8, 8)
+    body = box_mask(bins.shape, box)
+    bins[body] = 1  # bin 1: the target's own colour, inside its ellipse
+    bins[22:24][body[22:24]] = 2  # the target's lower part shares bin 2 with the surround
+    f = Feature(bins, np.ones(bins.shape, bool), 4)
+    w = background_weights(f, box, 2.0)  # surround: [12, 28) x [12, 28) outside the ellipse of 9.6 x 9.6
+    big = np.zeros(bins.shape, bool)
+    big[12:28, 12:28] = True
+    ring = big & ~box_mask(bins.shape, BBox(15.2, 15.2, 9.6, 9.6))
+    counts = np.bincount(bins[ring], minlength=4).astype(float)  # ground (bin 0) and patch (bin 2) only
+    assert counts[1] == 0 and counts[0] > 0 and counts[2] > 0
+    rare = min(counts[0], counts[2])
+    np.testing.assert_allclose(w, [rare / counts[0], 1.0, rare / counts[2], 1.0], rtol=1e-12)
+    q = np.array([0.25, 0.5, 0.25, 0.0])
+    m = weighted_model(q, w)
+    assert m.sum() == pytest.approx(1.0) and m[1] > 0.5  # the target's own colour counts more
+    assert background_weights(f, BBox(0, 0, 40, 40), 1.0).tolist() == [1.0] * 4  # no surround: unweighted
