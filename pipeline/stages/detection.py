@@ -25,6 +25,7 @@ docs/algorithms.md §5:
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -234,6 +235,11 @@ class Background:
     static: bool = False
 
 
+@functools.lru_cache(maxsize=8)
+def _hann_window(h: int, w: int) -> np.ndarray:
+    return cv2.createHanningWindow((w, h), cv2.CV_32F)
+
+
 def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float, float]:
     """The translation ``(dx, dy)`` (px) that carries ``ref`` onto ``img``, ``|dx|, |dy| <= max_px``.
 
@@ -249,7 +255,7 @@ def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float,
         a = cv2.resize(a, (a.shape[1] // f, a.shape[0] // f), interpolation=cv2.INTER_AREA)
         b = cv2.resize(b, (a.shape[1], a.shape[0]), interpolation=cv2.INTER_AREA)
     h, w = a.shape
-    win = cv2.createHanningWindow((w, h), cv2.CV_32F)
+    win = _hann_window(h, w)
     fa = cv2.dft((a - float(a.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
     fb = cv2.dft((b - float(b.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
     cross = cv2.mulSpectrums(fb, fa, 0, conjB=True)

@@ -41,7 +41,7 @@ from pipeline.stages import kalman
 from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
 from pipeline.stages.detection import Background, DetectionConfig, Region, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
-from pipeline.trackers.base import BackgroundEngine, detector_channel
+from pipeline.trackers.base import BackgroundEngine, detector_channel, pick_channel
 from pipeline.types import (
     BBox,
     Event,
@@ -87,12 +87,6 @@ def _motion_cfg(k: kalman.KalmanConfig, a: AssociationConfig) -> kalman.KalmanCo
                                size_noise=a.position_noise / 4, position_std_px=a.position_std_px)
 
 
-def _channel(frames: FramePair, preferred: str) -> str:
-    if getattr(frames, preferred) is not None:
-        return preferred
-    return "visible" if preferred == "infrared" else "infrared"
-
-
 def _new_track(tid: int, r: Region, grey: np.ndarray, frame: int, kcfg: kalman.KalmanConfig) -> DetTrack:
     return DetTrack(tid, kalman.init_state(r.box, kcfg), r.box, TargetStatus.TENTATIVE, frame, 1, 0, grey, r.box)
 
@@ -101,7 +95,7 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig,
          background: Background | None = None) -> tuple[DetectState, FrameResult]:
     """Start with no tracks (``targets`` are ignored: the detector finds them); ``background``, the
     detector's (the sequence's, :mod:`pipeline.io.background`), or None to bootstrap it from this frame."""
-    ch = _channel(frames, cfg.detection.channel)
+    ch = pick_channel(frames, cfg.detection.channel)
     state = DetectState((), 1, ch, background)
     return step(state, frames, cfg)
 
