@@ -24,7 +24,20 @@ PY = sys.executable
 
 
 def _cli(*args: object, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([PY, "-m", "pipeline", *map(str, args)], capture_output=True, text=True, timeout=timeout)
+    """Run the CLI; one that hangs fails the test with every thread's Python stack (faulthandler on SIGABRT)."""
+    cmd = [PY, "-X", "faulthandler", "-m", "pipeline", *map(str, args)]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        p.send_signal(signal.SIGABRT)
+        try:
+            out, err = p.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            out, err = p.communicate()
+        pytest.fail(f"{' '.join(map(str, args))} still running after {timeout:.0f} s; its stacks:\n{err[-6000:]}")
+    return subprocess.CompletedProcess(cmd, p.returncode, out, err)
 
 
 def _start(*args: object) -> subprocess.Popen:

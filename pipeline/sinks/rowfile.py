@@ -9,6 +9,7 @@ after any fault, a kill included, ``summary.json`` says how many frames the file
 
 from __future__ import annotations
 
+import errno
 import os
 from pathlib import Path
 
@@ -51,7 +52,10 @@ class RowFile:
         done = 0
         try:
             while done < len(data):
-                done += os.write(self._fd, view[done:])
+                n = os.write(self._fd, view[done:])
+                if n <= 0:  # a file system that reports a full disk as a write of nothing: no retry can help
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                done += n
         except OSError as exc:
             try:
                 os.ftruncate(self._fd, self._pos)
