@@ -53,7 +53,7 @@ class RowFile:
         try:
             while done < len(data):
                 n = os.write(self._fd, view[done:])
-                if n <= 0:  # a file system that reports a full disk as a write of nothing: no retry can help
+                if n == 0:  # a file system that reports a full disk as a write of nothing: no retry can help
                     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
                 done += n
         except OSError as exc:
