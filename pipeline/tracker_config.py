@@ -51,6 +51,12 @@ class DualConfig(Section):
     jump_fraction : float
         A tracked target's measurement lies within this share of its size (on each axis) of
         its prediction or of its last box; one farther is not taken, in (0, 5]; default 0.75.
+    jump_sigma : float
+        Around the prediction, that reach grows by this many standard deviations of the
+        predicted centre (per axis), >= 0; default 3. A target whose motion is not yet known
+        (its first frames, or after it was found again) may move by more than a share of its
+        size: a 10 px wide person walking 8 px a frame; once its motion is known the
+        prediction's deviation shrinks to a few px and the reach to about ``jump_fraction``.
     colour_veto_margin : float
         Where the colour is seen, a contour or a filter detection whose colour match is under
         ``colour_min_rho`` is not taken when the mean shift matches this much better
@@ -170,6 +176,7 @@ class DualConfig(Section):
     agree_fraction: float = param(0.35, gt=0, le=2)
     scale_agree_ratio: float = param(1.25, gt=1)
     colour_veto_margin: float = param(0.2, gt=0, le=1)
+    jump_sigma: float = param(3.0, ge=0)
     jump_fraction: float = param(0.75, gt=0, le=5)
     contour_checks: bool = True
     channel_weighting: bool = True

@@ -104,6 +104,18 @@ def test_a_measurement_out_of_reach_is_not_taken():
     assert d.case == Case.COAST and not d.measured
 
 
+def test_the_reach_grows_with_the_predictions_uncertainty():
+    """30 px (1.5 widths) from the prediction and the last box: out of ``jump_fraction``'s reach while the motion is
+    known (the prediction's deviation 2 px), within it while it is not (8 px: 15 + 3 x 8 = 39 px)."""
+    far = at(130)
+    known = decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(2.0, 2.0)), CFG)
+    unknown = decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(8.0, 8.0)), CFG)
+    assert known.case == Case.COAST
+    assert (unknown.case, unknown.box) == (Case.CONTOUR, far)
+    assert decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(8.0, 8.0)),
+                  DualConfig(jump_sigma=0.0)).case == Case.COAST
+
+
 def test_nothing_measured_coasts():
     d = decide(evidence(contour_box=None, contour_ok=False, contour_reason="no-component", rho_contour=NAN,
                         appearance_box=None, psr=NAN, meanshift_box=at(101), rho_meanshift=0.2), CFG)

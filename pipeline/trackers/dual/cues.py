@@ -29,6 +29,7 @@ from pipeline.stages.histogram import (
 from pipeline.stages.meanshift import mean_shift
 from pipeline.stages.motion import hold_rates
 from pipeline.tracker_config import DualConfig
+from pipeline.trackers.dual.decide import near_prediction
 from pipeline.trackers.dual.state import DualTarget
 from pipeline.types import BBox, TargetStatus
 
@@ -234,7 +235,12 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode:
         d = app.detect(t.appearance, vis, ir, cs.y1, acfg, size=size, with_scale=with_scale)
         if d.psr > best.psr:
             best = d
-    if missing and dcfg.redetect and best.psr < dcfg.psr_reacquire:
+    # a missing target is searched for unless the filter finds it where rule 7 of the decision takes it back (a
+    # confident peak elsewhere in the window, on something the filter learned while the target was hidden, does not
+    # stop the search)
+    predicted = (float(cs.prior.x[0]), float(cs.prior.x[1]))
+    if missing and dcfg.redetect and not (
+            best.psr >= dcfg.psr_reacquire and near_prediction(best.center, predicted, t.reference_size, t.missing, dcfg)):
         H, W = frames.shape
         cands = []
         if cs.informative and not math.isnan(cs.rho1):

@@ -80,6 +80,7 @@ class Evidence:
     last: BBox | None = None  # the previous output box
     redetected: bool = False  # the filter's detection came from the re-detection search
     outside: bool = False  # the prediction has left the frame
+    prior_std_px: tuple[float, float] = (0.0, 0.0)  # standard deviation of the predicted centre (x, y)
 
     @property
     def ref_area(self) -> float:
@@ -111,9 +112,16 @@ def agree(a: BBox, b: BBox, size: tuple[float, float], fraction: float) -> bool:
 
 def near_prior(box: BBox, ev: Evidence, cfg: DualConfig) -> bool:
     """Within half the target's size of the prediction, plus ``reacquire_gate_px_per_frame`` per missing frame."""
-    extra = cfg.reacquire_gate_px_per_frame * ev.missing
-    return (abs(box.cx - ev.prior.cx) <= 0.5 * ev.ref_size[0] + extra
-            and abs(box.cy - ev.prior.cy) <= 0.5 * ev.ref_size[1] + extra)
+    return near_prediction(box.center, ev.prior.center, ev.ref_size, ev.missing, cfg)
+
+
+def near_prediction(center: tuple[float, float], predicted: tuple[float, float], ref_size: tuple[float, float],
+                    missing: int, cfg: DualConfig) -> bool:
+    """:func:`near_prior` on plain values: ``center`` within half of ``ref_size`` of ``predicted``, plus
+    ``reacquire_gate_px_per_frame`` per ``missing`` frame."""
+    extra = cfg.reacquire_gate_px_per_frame * missing
+    return (abs(center[0] - predicted[0]) <= 0.5 * ref_size[0] + extra
+            and abs(center[1] - predicted[1]) <= 0.5 * ref_size[1] + extra)
 
 
 def _good(x: float, threshold: float) -> bool:
@@ -220,10 +228,11 @@ def contour_agrees(contour: BBox, ev: Evidence, cfg: DualConfig) -> bool:
 
 def within_reach(box: BBox, ev: Evidence, cfg: DualConfig) -> bool:
     """Within ``jump_fraction`` of the target's size (on each axis) of its prediction or of its last box."""
-    def near(ref: BBox | None) -> bool:
-        return ref is not None and (abs(box.cx - ref.cx) <= cfg.jump_fraction * ev.ref_size[0]
-                                    and abs(box.cy - ref.cy) <= cfg.jump_fraction * ev.ref_size[1])
-    return near(ev.prior) or near(ev.last)
+    def near(ref: BBox | None, sx: float = 0.0, sy: float = 0.0) -> bool:
+        return ref is not None and (abs(box.cx - ref.cx) <= cfg.jump_fraction * ev.ref_size[0] + sx
+                                    and abs(box.cy - ref.cy) <= cfg.jump_fraction * ev.ref_size[1] + sy)
+    k = cfg.jump_sigma
+    return near(ev.prior, k * ev.prior_std_px[0], k * ev.prior_std_px[1]) or near(ev.last)
 
 
 def colour_elsewhere(box: BBox, rho_at: float, ev: Evidence, cfg: DualConfig) -> bool:

@@ -119,7 +119,8 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: 
         contour_reason=c.reason if c is not None else "no-contour", rho_contour=rho_c,
         appearance_box=cue.box if cue is not None else None, psr=cue.psr if cue is not None else float("nan"),
         rho_appearance=rho_a, last=t.box, support=cue.support if cue is not None else (math.nan, math.nan),
-        redetected=bool(cue is not None and cue.redetected), outside=outside(prior.box, (H, W)))
+        redetected=bool(cue is not None and cue.redetected), outside=outside(prior.box, (H, W)),
+        prior_std_px=(math.sqrt(float(prior.P[0, 0])), math.sqrt(float(prior.P[1, 1]))))
     decision: Decision = decide(ev, dcfg)
     if start is not None and not decision.measured and c is not None and c.box is not None:
         # the blob a split re-associated this target with is its measurement
