@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -15,6 +16,7 @@ from pipeline.stages.contour import ContourReason, ContourResult, extract_contou
 from pipeline.stages.extent import colour_extent, search_window
 from pipeline.tracker_config import DualConfig
 from pipeline.trackers.dual.cues import (
+    AppearanceCue,
     ColourStep,
     add_time,
     appearance_cue,
@@ -78,14 +80,26 @@ def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
     return cs.y0
 
 
-def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
-                  start: tuple[float, float] | None = None, events_in: list[Event] | None = None,
-                  neighbours: tuple[BBox, ...] = (), background=None):
-    """Contour, decision, size, models and motion for one target that is not merged: (new state, result, events).
+@dataclass(frozen=True)
+class Measured:
+    """One target's cues and decision in one frame, before anything is updated (:func:`measure_single`)."""
 
-    ``start`` forces a cold contour start there (a blob after a split), which starts the re-merge hold;
-    ``neighbours`` are the other targets' boxes this frame; ``background`` the detector's, for the whole-frame
-    search of a missing target (:func:`pipeline.trackers.dual.cues.frame_candidates`)."""
+    cs: ColourStep
+    cue: AppearanceCue | None
+    contour: ContourResult | None
+    rho_contour: float
+    rho_appearance: float
+    evidence: Evidence
+    decision: Decision
+    start: tuple[float, float] | None = None
+
+
+def measure_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
+                   start: tuple[float, float] | None = None, background=None) -> Measured:
+    """The cues of one target that is not merged (filter, IR contour, colour at each) and the decision over them.
+
+    ``start`` forces a cold contour start there (a blob after a split); ``background`` is the detector's, for the
+    whole-frame search of a missing target (:func:`pipeline.trackers.dual.cues.frame_candidates`)."""
     dcfg: DualConfig = cfg.dual
     t, prior = cs.t, cs.prior
     ir = frames.infrared if mode in ("dual", "ir") else None
@@ -100,7 +114,7 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: 
         expected = BBox.from_center(yc[0], yc[1], t.size[0], t.size[1])
         shift = (yc[0] - t.memory_center[0], yc[1] - t.memory_center[1])
         c = extract_contour(ir, expected, cfg.contour, cfg.levelset, memory, shift)
-        clock = add_time(timing, "levelset", clock)
+        add_time(timing, "levelset", clock)
     contour_usable = c is not None and c.box is not None and (
         c.ok or not dcfg.contour_checks or (not dcfg.channel_weighting and c.reason == ContourReason.LOW_CONTRAST))
     mmf = cfg.meanshift.min_mass_fraction
@@ -125,6 +139,28 @@ def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: 
     if start is not None and not decision.measured and c is not None and c.box is not None:
         # the blob a split re-associated this target with is its measurement
         decision = Decision(Case.CONTOUR, c.box, 1.0, TargetStatus.TRACKING, "split-blob", True, False, "levelset")
+    return Measured(cs, cue, c, rho_c, rho_a, ev, decision, start)
+
+
+def finish_single(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
+                  start: tuple[float, float] | None = None, events_in: list[Event] | None = None,
+                  neighbours: tuple[BBox, ...] = (), background=None):
+    """:func:`measure_single` and :func:`update_single` of one target that is not merged: (new state, result,
+    events)."""
+    m = measure_single(frames, cs, cfg, mode, timing, start, background)
+    return update_single(frames, m, cfg, mode, timing, events_in, neighbours)
+
+
+def update_single(frames: FramePair, m: Measured, cfg: PipelineConfig, mode: str, timing: dict[str, float],
+                  events_in: list[Event] | None = None, neighbours: tuple[BBox, ...] = ()):
+    """Size, models, motion, events and the reported result of one target after its decision: (new state, result,
+    events). ``neighbours`` are the other targets' boxes this frame (the colour extent is not measured where one
+    is near)."""
+    dcfg: DualConfig = cfg.dual
+    cs, cue, c, rho_c, rho_a, decision, start = m.cs, m.cue, m.contour, m.rho_contour, m.rho_appearance, m.decision, m.start
+    t, prior = cs.t, cs.prior
+    ref = t.reference_size
+    clock = time.perf_counter()
 
     # size, output box, models
     extent = measured_extent(cs, decision, cfg, neighbours) if dcfg.extent_cue else None
