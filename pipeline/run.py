@@ -240,6 +240,7 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
         "seed": seq.meta.get("seed") if isinstance(seq.meta.get("seed"), int) else None,
         "stage_seconds": {},
         "fps_tracking": None,
+        "fps_tracking_cpu": None,
         "fps_end_to_end": None,
         "complete": False,
         "metrics": None,

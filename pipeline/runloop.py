@@ -77,6 +77,7 @@ class LoopStats:
 
     frames: int = 0
     tracker_s: float = 0.0
+    tracker_cpu_s: float = 0.0  # CPU seconds of the calling thread inside the step
     decode_s: float = 0.0
     sinks_s: float = 0.0
     wall_s: float = 0.0
@@ -358,9 +359,10 @@ def run_job(job: Job) -> LoopResult:
                     for frames in reader:
                         if sig.count:
                             raise KeyboardInterrupt
-                        t0 = time.perf_counter()
+                        t0, c0 = time.perf_counter(), time.thread_time()
                         item = job.step(frames)
                         stats.tracker_s += time.perf_counter() - t0
+                        stats.tracker_cpu_s += time.thread_time() - c0
                         for k, v in getattr(item, "stage_seconds", {}).items():
                             stats.stage_s[k] = stats.stage_s.get(k, 0.0) + v
                         writer.put(frames, item)
@@ -394,6 +396,7 @@ def run_job(job: Job) -> LoopResult:
             "frames": stats.frames,
             "stage_seconds": {k: round(v, 6) for k, v in stage.items()},
             "fps_tracking": round(done / stats.tracker_s, 3) if stats.tracker_s > 0 else None,
+            "fps_tracking_cpu": round(done / stats.tracker_cpu_s, 3) if stats.tracker_cpu_s > 0 else None,
             "fps_end_to_end": round(done / stats.wall_s, 3) if stats.wall_s > 0 else None,
             "complete": complete,
         }

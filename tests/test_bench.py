@@ -11,10 +11,13 @@ def test_bench_table_and_json(scene, tmp_path):
     assert [r["tracker"] for r in rows] == ["meanshift", "camshift"]
     for r in rows:
         assert r["frames"] == 32 and r["fps_decode"] > 0 and r["fps_tracking"] > 0 and r["fps_end_to_end"] > 0
+        assert r["fps_tracking_cpu"] > 0
         assert 0 <= r["p20"] <= 1 and 0 <= r["auc"] <= 1 and r["end_to_end_vs_decode"] > 0
-    assert "camshift" in rows[0]["speed_vs_peers"]
+    assert "camshift" in rows[0]["speed_vs_peers"] and "camshift" in rows[0]["speed_vs_peers_cpu"]
+    assert rows[0]["speed_vs_peers_cpu"]["camshift"] == round(rows[0]["fps_tracking_cpu"] / rows[1]["fps_tracking_cpu"], 2)
     table = format_table(rows)
-    assert "| sequence | tracker | P@20 | AUC | fps_tracking | fps_end_to_end | fps_decode | e2e/decode | e2e/min(trk,dec) |" in table
+    assert ("| sequence | tracker | P@20 | AUC | fps_tracking | fps_tracking_cpu | fps_end_to_end | fps_decode | e2e/decode "
+            "| e2e/min(trk,dec) |") in table
     assert json.loads((tmp_path / "b.json").read_text())["rows"][1]["tracker"] == "camshift"
 
 
@@ -99,3 +102,23 @@ def test_bench_random_rejects_bad_options(capsys):
     assert "--random takes a number of scenes >= 1" in capsys.readouterr().err
     assert main(["bench", "--seeds", "4-2"]) == 1
     assert "seeds must be N or A-B" in capsys.readouterr().err
+
+
+def test_the_cpu_rate_counts_only_the_trackers_own_work(scene, monkeypatch, tmp_path):
+    """A tracker that waits (a sleep: wall time, no CPU) 20 ms a frame: its tracking rate is at most 50 frames/s, its
+    rate in CPU time far higher; the waiting is what the reader and writer threads cost a tracker beside them."""
+    import time
+
+    from pipeline.run import RunOptions, run_track
+    from pipeline.trackers import base
+
+    slow_step = base.FunctionalEngine.step
+
+    def waiting(self, frames):
+        time.sleep(0.02)
+        return slow_step(self, frames)
+
+    monkeypatch.setattr(base.FunctionalEngine, "step", waiting)
+    s = run_track(scene("pole-fast"), RunOptions(tracker="meanshift", out_dir=tmp_path / "r", rrd=False, plots=False,
+                                                  progress=False)).summary
+    assert s["fps_tracking"] <= 50 and s["fps_tracking_cpu"] > 3 * s["fps_tracking"]

@@ -38,7 +38,7 @@ def test_run_folder_contract(scene, tmp_path):
     assert len(targets) == 1 + 160 * 2
     s = json.loads((out / "summary.json").read_text())
     for k in ("tracker", "sequence", "frames", "targets", "config", "version", "seed", "stage_seconds", "fps_tracking",
-              "fps_end_to_end", "complete", "metrics"):
+              "fps_tracking_cpu", "fps_end_to_end", "complete", "metrics"):
         assert k in s
     assert s["complete"] is True and s["frames"] == 160 and s["seed"] == 0
     assert {"mota", "idf1", "purity", "p20"} <= set(s["metrics"])
