@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from pipeline.config import PipelineConfig
@@ -86,8 +88,10 @@ def update_appearance(model: app.AppearanceModel | None, frames_vis, frames_ir, 
     if informative and not colour.update and colour.reason in ("rho-low", "occluded"):
         return model
     k = acfg.update_every_frames
+    ks = acfg.scale_every_frames  # the scale filter learns on the frames it estimates on
+    scale_rate = 1 - (1 - acfg.scale_learning_rate) ** math.lcm(k, ks) if frame % ks == 0 else 0.0
     return app.update(model, frames_vis, frames_ir, box, acfg, rate=1 - (1 - acfg.learning_rate) ** k,
-                      scale_rate=1 - (1 - acfg.scale_learning_rate) ** k)
+                      scale_rate=scale_rate)
 
 
 def motion_update(cs: ColourStep, decision: Decision, out: BBox, frame: int, dcfg: DualConfig, kcfg,
