@@ -1,4 +1,4 @@
-"""Where a tracker misses the truth on random scenes, and why: a breakdown of its failed target-frames.
+"""Where a tracker misses the truth on random scenes, and why: its failed target-frames by cause.
 
 Usage: python tools/failure_modes.py RUN_ROOT [--tracker dual] [--worst 10]
 
@@ -41,14 +41,19 @@ from pipeline.synthetic.family import draw_scene
 from pipeline.synthetic.scene import Renderer
 
 CLASSES = ("hidden", "on-other", "lost", "coasting", "size", "drift")
+Box = tuple[float, float, float, float]
 
 
-def iou(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> float:
+def iou(a: Box, b: Box) -> float:
     ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
     iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
     inter = ix * iy
     union = a[2] * a[3] + b[2] * b[3] - inter
     return inter / union if union > 0 else 0.0
+
+
+def centre_distance(a: Box, b: Box) -> float:
+    return float(np.hypot(a[0] + a[2] / 2 - b[0] - b[2] / 2, a[1] + a[3] / 2 - b[1] - b[3] / 2))
 
 
 def scene_failures(scene_dir: Path, run_dir: Path) -> tuple[Counter, int]:
@@ -57,12 +62,14 @@ def scene_failures(scene_dir: Path, run_dir: Path) -> tuple[Counter, int]:
     gen = meta.get("generator") or {}
     targets = tuple(gen["targets"]) if gen.get("targets") else None
     size = tuple(gen.get("size") or (meta["width"], meta["height"]))
-    drawn = draw_scene(int(meta["seed"]), targets, int(size[0]), int(size[1]), int(gen.get("frames") or meta["frames"]))
+    frames = int(gen.get("frames") or meta["frames"])
+    drawn = draw_scene(int(meta["seed"]), targets, int(size[0]), int(size[1]), frames)
     renderer = Renderer(drawn.scene, drawn.render_seed)
     out: dict[tuple[int, int], tuple[str, tuple[float, float, float, float]]] = {}
     with open(run_dir / "targets.csv") as fh:
         for r in csv.DictReader(fh):
-            out[(int(r["frame"]), int(r["id"]))] = (r["status"], tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px")))
+            box = tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
+            out[(int(r["frame"]), int(r["id"]))] = (r["status"], box)
     counts: Counter = Counter()
     total = 0
     for t in range(1, drawn.scene.n_frames + 1):
@@ -79,13 +86,14 @@ def scene_failures(scene_dir: Path, run_dir: Path) -> tuple[Counter, int]:
             rivals = [b for j, b in f.truth_visible.items() if j != tid and b is not None] + others
             if f.visibility.get(tid, 0.0) < 0.25:
                 counts["hidden"] += 1
-            elif shown and any(iou(box, b) >= 0.3 and iou(box, b) > iou(box, truth) for b in rivals):
+            elif shown and any(iou(box, b) >= 0.3 and iou(box, b) > iou(box, truth)
+                               for b in rivals):
                 counts["on-other"] += 1
             elif not shown:
                 counts["lost"] += 1
             elif status.startswith("occluded"):
                 counts["coasting"] += 1
-            elif np.hypot(box[0] + box[2] / 2 - truth[0] - truth[2] / 2, box[1] + box[3] / 2 - truth[1] - truth[3] / 2) <= 20:
+            elif centre_distance(box, truth) <= 20:
                 counts["size"] += 1
             else:
                 counts["drift"] += 1
