@@ -253,8 +253,8 @@ def format_table(rows: list[dict[str, object]]) -> str:
             continue
         cells = [
             str(r["sequence"]), str(r["tracker"]), f(r.get("p20")), f(r.get("auc")), f(r.get("fps_tracking"), 1),
-            f(r.get("fps_tracking_cpu"), 1), f(r.get("fps_end_to_end"), 1), f(r.get("fps_decode"), 1), f(r.get("end_to_end_vs_decode"), 2),
-            f(r.get("end_to_end_vs_bound"), 2),
+            f(r.get("fps_tracking_cpu"), 1), f(r.get("fps_end_to_end"), 1), f(r.get("fps_decode"), 1),
+            f(r.get("end_to_end_vs_decode"), 2), f(r.get("end_to_end_vs_bound"), 2),
         ]
         if multi:
             cells += [f(r.get("purity")), f(r.get("id_switches")), f(r.get("mota")), f(r.get("idf1"))]

@@ -207,6 +207,13 @@ def recent_speed(t: DualTarget) -> float:
     return math.hypot(b[1] - a[1], b[2] - a[2]) / max(b[0] - a[0], 1.0)
 
 
+def taken_back(d: app.Detection, cs: ColourStep, dcfg: DualConfig) -> bool:
+    """The filter's detection ``d`` of a missing target is one that rule 7 of the decision takes back: at
+    ``psr_reacquire`` and near the prediction (:func:`pipeline.trackers.dual.decide.near_prediction`)."""
+    predicted = (float(cs.prior.x[0]), float(cs.prior.x[1]))
+    return d.psr >= dcfg.psr_reacquire and near_prediction(d.center, predicted, cs.t.reference_size, cs.t.missing, dcfg)
+
+
 def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
                    frame_index: int, background: Background | Callable[[], Background | None] | None = None
                    ) -> AppearanceCue | None:
@@ -238,9 +245,7 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode:
     # a missing target is searched for unless the filter finds it where rule 7 of the decision takes it back (a
     # confident peak elsewhere in the window, on something the filter learned while the target was hidden, does not
     # stop the search)
-    predicted = (float(cs.prior.x[0]), float(cs.prior.x[1]))
-    if missing and dcfg.redetect and not (
-            best.psr >= dcfg.psr_reacquire and near_prediction(best.center, predicted, t.reference_size, t.missing, dcfg)):
+    if missing and dcfg.redetect and not taken_back(best, cs, dcfg):
         H, W = frames.shape
         cands = []
         if cs.informative and not math.isnan(cs.rho1):

@@ -227,7 +227,8 @@ def contour_agrees(contour: BBox, ev: Evidence, cfg: DualConfig) -> bool:
 
 
 def within_reach(box: BBox, ev: Evidence, cfg: DualConfig) -> bool:
-    """Within ``jump_fraction`` of the target's size (on each axis) of its prediction or of its last box."""
+    """Within ``jump_fraction`` of the target's size (on each axis) of its last box, or of its prediction with
+    ``jump_sigma`` standard deviations of the predicted centre added."""
     def near(ref: BBox | None, sx: float = 0.0, sy: float = 0.0) -> bool:
         return ref is not None and (abs(box.cx - ref.cx) <= cfg.jump_fraction * ev.ref_size[0] + sx
                                     and abs(box.cy - ref.cy) <= cfg.jump_fraction * ev.ref_size[1] + sy)

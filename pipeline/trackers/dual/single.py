@@ -157,7 +157,8 @@ def update_single(frames: FramePair, m: Measured, cfg: PipelineConfig, mode: str
     events). ``neighbours`` are the other targets' boxes this frame (the colour extent is not measured where one
     is near)."""
     dcfg: DualConfig = cfg.dual
-    cs, cue, c, rho_c, rho_a, decision, start = m.cs, m.cue, m.contour, m.rho_contour, m.rho_appearance, m.decision, m.start
+    cs, cue, c, decision, start = m.cs, m.cue, m.contour, m.decision, m.start
+    rho_c, rho_a = m.rho_contour, m.rho_appearance
     t, prior = cs.t, cs.prior
     ref = t.reference_size
     clock = time.perf_counter()
