@@ -62,6 +62,10 @@ class AssociationConfig(Section):
         coasts a few frames, not ``max_misses``.
     max_merged_frames : int
         ... or after this many frames merged into another target's blob, >= 1; default 90.
+    relink_frames : int
+        A lost track stays dormant this many frames, >= 0; default 60: a new track confirmed
+        near where a dormant one would be by then takes the dormant one's identity (the
+        detector missed the target for a while), 0 disables.
     position_noise : float
         Process noise of the tracks' constant-velocity Kalman filter (white acceleration,
         (px/frame^2)^2), > 0; default 0.5: detected targets turn and stop.
@@ -87,6 +91,7 @@ class AssociationConfig(Section):
     max_misses: int = param(30, ge=1)
     coast_per_hit: float = param(0.5, ge=0)
     max_merged_frames: int = param(90, ge=1)
+    relink_frames: int = param(60, ge=0)
     position_noise: float = param(0.5, gt=0)
     position_std_px: float = param(2.0, gt=0)
     split_touching: bool = False

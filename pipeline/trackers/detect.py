@@ -74,6 +74,7 @@ class DetectState:
     next_id: int
     channel: str
     background: Background | None = None  # the detector's background estimate (``detection.method = foreground``)
+    dormant: tuple[tuple[DetTrack, int], ...] = ()  # confirmed tracks given up, with the frame they were lost
 
 
 def _kcfg(cfg: PipelineConfig) -> kalman.KalmanConfig:
@@ -182,6 +183,7 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
     events: list[Event] = []
     results: list[TargetResult] = []
     tracks: list[DetTrack] = []
+    dormant = tuple(d for d in state.dormant if frames.index - d[1] <= a.relink_frames)
     for i, (t, prior) in enumerate(zip(state.tracks, priors, strict=True)):
         j = matched.get(i)
         age = frames.index - t.born + 1
@@ -192,7 +194,15 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
             status = t.status
             if status == TargetStatus.TENTATIVE and hits >= a.confirm_hits:
                 status = TargetStatus.TRACKING
-                events.append(Event(EventKind.CONFIRMED, f"T{t.id} confirmed ({hits} detections in {age} frames)", (t.id,)))
+                old = _relink(t, r.box, dormant, frames.index, a.relink_frames)
+                if old is not None:
+                    dormant = tuple(d for d in dormant if d[0].id != old.id)
+                    events.append(Event(EventKind.REACQUIRED, f"T{old.id} found again ({frames.index - t.born + 1} "
+                                        f"frames after a new track started on it)", (old.id,)))
+                    t = dataclasses.replace(t, id=old.id)
+                else:
+                    events.append(Event(EventKind.CONFIRMED, f"T{t.id} confirmed ({hits} detections in {age} frames)",
+                                        (t.id,)))
             elif status in (TargetStatus.OCCLUDED_SEVERE, TargetStatus.MERGED):
                 events.append(Event(EventKind.SPLIT if status == TargetStatus.MERGED else EventKind.OCCLUSION_END,
                                     f"T{t.id} detected again on its own", (t.id,)))
@@ -246,6 +256,8 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
                                     "none", conf, (), diag, {"prediction": prior.box}))
         if status != TargetStatus.LOST:
             tracks.append(nt)
+        elif a.relink_frames > 0:
+            dormant += ((nt, frames.index),)
     next_id = state.next_id
     for j in assignment.unmatched_detections:
         r = regions[j]
@@ -261,7 +273,34 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
         next_id += 1
     timing["detect_tracker"] = time.perf_counter() - t0
     res = FrameResult(frames.index, tuple(sorted(results, key=lambda r: r.id)), tuple(events), timing)
-    return DetectState(tuple(tracks), next_id, state.channel, found.background), res
+    return DetectState(tuple(tracks), next_id, state.channel, found.background, dormant), res
+
+
+def _relink(t: DetTrack, box: BBox, dormant: Sequence[tuple[DetTrack, int]], frame: int,
+            max_frames: int) -> DetTrack | None:
+    """The dormant track a newly confirmed track ``t`` (now at ``box``) continues, or None.
+
+    A dormant track, last detected ``gap`` frames ago at centre ``c0`` with velocity ``v`` (its
+    Kalman state), is a candidate when it was lost at most ``max_frames`` frames ago, its
+    height is within a factor 2 of ``box``'s, and ``box``'s centre lies within
+    ``max(w, h) + (|v| + 1 px) * gap`` of ``c0 + v * min(gap, 10)`` (the velocity is trusted
+    for 10 frames at most: targets stop and turn). The nearest candidate, in distance over
+    that radius, is taken.
+    """
+    best, best_d = None, 1.0
+    cx, cy = box.center
+    for d, lost in dormant:
+        if frame - lost > max_frames or not 0.5 <= box.h / max(d.template_box.h, 1.0) <= 2.0:
+            continue
+        gap = frame - (lost - d.misses)
+        vx, vy = float(d.kf.x[4]), float(d.kf.x[5])
+        px, py = d.template_box.center
+        k = min(gap, 10)
+        radius = max(d.template_box.w, d.template_box.h) + (math.hypot(vx, vy) + 1.0) * gap
+        dist = math.hypot(cx - (px + vx * k), cy - (py + vy * k)) / radius
+        if dist < best_d:
+            best, best_d = d, dist
+    return best
 
 
 def _contains(box: BBox, c: np.ndarray) -> bool:

@@ -130,3 +130,44 @@ def test_the_runner_gives_the_detect_tracker_the_sequence_background(scene):
         engine.step(next(frames))
         assert engine.state.background.static is static
         assert engine.state.background.frames == (25 if static else 2)
+
+
+def _gap_frames(gap: tuple[int, int], n_total: int, jump_px: int = 0):
+    """IR frames of the warm person of :func:`_blob_frames`, walking right 2 px a frame but not to be seen
+    (not detected) in frames ``gap[0]..gap[1]``; after the gap it reappears ``jump_px`` further right."""
+    from pipeline.io.sequence import FramePair
+
+    rng = np.random.default_rng(5)
+    for k in range(n_total):
+        ir = (60 + rng.normal(0, 2, (120, 260))).clip(0, 255).astype(np.uint8)
+        if not gap[0] <= k + 1 <= gap[1]:
+            x = 20 + 2 * k + (jump_px if k + 1 > gap[1] else 0)
+            ir[40:70, x:x + 12] = 140
+        yield FramePair(k + 1, None, ir)
+
+
+def _ids_by_frame(frames, cfg):
+    from pipeline.trackers.detect import init, step
+    from pipeline.types import TargetStatus
+
+    state, ids = None, {}
+    for fp in frames:
+        state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
+        ids[fp.index] = [r.id for r in res.targets if r.status == TargetStatus.TRACKING]
+    return ids
+
+
+@pytest.mark.parametrize("relink_frames,jump_px,same", [(60, 0, True), (0, 0, False), (60, 100, False)])
+def test_a_target_lost_and_found_again_keeps_its_identity(relink_frames, jump_px, same):
+    """Seen in frames 1-20, undetected in 21-45 (lost on its 6th missing frame), seen again from 46 where its
+    walk has taken it: the new track, confirmed at frame 48, takes the lost track's id when a lost track stays
+    dormant (``relink_frames``); not when that is off, nor when it reappears 100 px beyond where its walk took it (farther than
+    it could have gone at 1 px a frame over its speed)."""
+    from pipeline.config import load_config
+
+    cfg = load_config(None, [f"association.relink_frames={relink_frames}"])
+    ids = _ids_by_frame(_gap_frames((21, 45), 60, jump_px), cfg)
+    assert ids[20] == [1]
+    assert ids[30] == []  # lost, and not reported while dormant
+    assert len(ids[55]) == 1
+    assert (ids[55] == [1]) == same
