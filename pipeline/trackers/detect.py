@@ -13,7 +13,9 @@ The system of the ROI feature-matching fusion paper, no initial boxes needed:
 5. update matched tracks (box and template chip), coast the others; unmatched detections
    start tentative tracks, confirmed after M of N frames; a track missed ``max_misses``
    frames, or more than ``coast_per_hit`` times the detections it has had, or predicted out
-   of the frame, is lost.
+   of the frame, is lost; it stays dormant ``relink_frames`` frames, and a new track
+   confirmed where it could have walked to by then takes its id (:func:`_relink`): the
+   detector missed the target for a while.
 
 Statuses: ``tentative`` (not yet confirmed; in targets.csv, not in tracks.csv),
 ``tracking``, ``merged`` (not detected on its own but its prediction lies inside a detected
@@ -194,7 +196,7 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
             status = t.status
             if status == TargetStatus.TENTATIVE and hits >= a.confirm_hits:
                 status = TargetStatus.TRACKING
-                old = _relink(t, r.box, dormant, frames.index, a.relink_frames)
+                old = _relink(r.box, dormant, frames.index, a.relink_frames)
                 if old is not None:
                     dormant = tuple(d for d in dormant if d[0].id != old.id)
                     events.append(Event(EventKind.REACQUIRED, f"T{old.id} found again ({frames.index - t.born + 1} "
@@ -276,9 +278,9 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
     return DetectState(tuple(tracks), next_id, state.channel, found.background, dormant), res
 
 
-def _relink(t: DetTrack, box: BBox, dormant: Sequence[tuple[DetTrack, int]], frame: int,
+def _relink(box: BBox, dormant: Sequence[tuple[DetTrack, int]], frame: int,
             max_frames: int) -> DetTrack | None:
-    """The dormant track a newly confirmed track ``t`` (now at ``box``) continues, or None.
+    """The dormant track that a track confirmed at ``frame`` on ``box`` continues, or None.
 
     A dormant track, last detected ``gap`` frames ago at centre ``c0`` with velocity ``v`` (its
     Kalman state), is a candidate when it was lost at most ``max_frames`` frames ago, its
