@@ -62,6 +62,11 @@ class AssociationConfig(Section):
         coasts a few frames, not ``max_misses``.
     max_merged_frames : int
         ... or after this many frames merged into another target's blob, >= 1; default 90.
+    min_perimeter_px : float
+        The detection-driven tracker uses only the detected regions whose boundary is at
+        least this long, px, >= 0; default 40: the detector's smaller regions (distant people,
+        but also a target's warm parts) give boxes too small for the target they lie on and
+        pull its track onto a part; 0 uses every region the detector keeps.
     relink_frames : int
         A lost track stays dormant this many frames, >= 0; default 60: a new track confirmed
         near where a dormant one would be by then takes the dormant one's identity (the
@@ -92,6 +97,7 @@ class AssociationConfig(Section):
     coast_per_hit: float = param(0.5, ge=0)
     max_merged_frames: int = param(90, ge=1)
     relink_frames: int = param(60, ge=0)
+    min_perimeter_px: float = param(40.0, ge=0)
     position_noise: float = param(0.5, gt=0)
     position_std_px: float = param(2.0, gt=0)
     split_touching: bool = False

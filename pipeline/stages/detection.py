@@ -129,10 +129,11 @@ class DetectionConfig(Section):
         and wheels or a car's warm parts in the foreground), px, >= 1; default 11 (7 left a
         cyclist in pieces: a box of IoU >= 0.5 with it in 32 % of the frames, against 39 %).
     min_area_px : int
-        Components smaller than this (px) are dropped before discrimination, >= 1; default 40.
+        Components smaller than this (px) are dropped before discrimination, >= 1; default 20.
     perimeter_px : tuple[float, float]
-        Accepted range of the boundary length P (px); default (40, 900): people and vehicles
-        about 15 to 300 px tall.
+        Accepted range of the boundary length P (px); default (24, 900): people and vehicles
+        about 8 to 300 px tall, or the warm part of one (raising the lower end drops distant
+        people; lowering it lets in specks of noise).
     max_aspect : float
         Largest accepted aspect ratio of the minimum-area rectangle, >= 1; default 5.
     max_complexity : float
@@ -171,8 +172,8 @@ class DetectionConfig(Section):
     min_std: float = param(4.0, ge=0)
     open_px: int = param(3, ge=1)
     close_px: int = param(11, ge=1)
-    min_area_px: int = param(40, ge=1)
-    perimeter_px: tuple[float, float] = (40.0, 900.0)
+    min_area_px: int = param(20, ge=1)
+    perimeter_px: tuple[float, float] = (24.0, 900.0)
     max_aspect: float = param(5.0, ge=1)
     max_complexity: float = param(5.0, ge=1)
     split_core_fraction: float = param(0.7, ge=0, lt=1)

@@ -163,7 +163,7 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
     H, W = grey.shape
     found = detect(grey, _detection_cfg(cfg.detection, a.split_touching), state.background,
                    frames.visible if state.channel == "infrared" else None)
-    regions = list(found.regions)
+    regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px]
     t1 = time.perf_counter()
     timing["detection"] = t1 - t0
     priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]

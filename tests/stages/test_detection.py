@@ -260,3 +260,22 @@ def test_touching_bodies_are_split_and_one_body_is_not():
     centres = sorted(cv2.boundingRect(c)[0] + cv2.boundingRect(c)[2] / 2 for c in parts)
     assert len(parts) == 2 and abs(centres[0] - 40.5) <= 3 and abs(centres[1] - 66.5) <= 3
     assert len(split_touching(outer(two), 0.0, 10)) == 1  # 0 disables
+
+
+def test_a_distant_person_is_kept_and_noise_specks_are_not():
+    """A warm 5 x 12 px person (boundary about 30 px) on a noisy IR ground against the sequence's background: kept
+    by the default boundary range (from 24 px), dropped as too small under the range's former floor of 40; the
+    noise makes no region either way."""
+    rng = np.random.default_rng(11)
+    ground = cv2.GaussianBlur(rng.normal(90, 10, (120, 160)), (0, 0), 4)
+    frames = []
+    for k in range(25):
+        img = ground + rng.normal(0, 2, ground.shape)
+        img[50:62, 20 + 4 * k:25 + 4 * k] += 40
+        frames.append(np.clip(img, 0, 255).astype(np.uint8))
+    bg = quantile_background(frames, DetectionConfig())
+    d = detect(frames[12], DetectionConfig(), bg)
+    assert len(d.regions) == 1, [(r.box, r.reason) for r in (*d.regions, *d.rejected)]
+    assert d.regions[0].centroid == pytest.approx((20 + 48 + 2.5, 56), abs=1.5)
+    old = detect(frames[12], DetectionConfig(perimeter_px=(40.0, 900.0), min_area_px=40), bg)
+    assert not old.regions and [r.reason for r in old.rejected] == ["too-small"]

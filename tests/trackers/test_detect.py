@@ -171,3 +171,22 @@ def test_a_target_lost_and_found_again_keeps_its_identity(relink_frames, jump_px
     assert ids[30] == []  # lost, and not reported while dormant
     assert len(ids[55]) == 1
     assert (ids[55] == [1]) == same
+
+
+@pytest.mark.parametrize("min_perimeter_px,tracked", [(40.0, False), (0.0, True)])
+def test_the_tracker_leaves_regions_under_its_own_floor_to_the_detector(min_perimeter_px, tracked):
+    """A warm 5 x 12 px speck walking on noise is a region for the detector (boundary about 30 px); the tracker
+    starts no track on it under ``association.min_perimeter_px`` 40, and tracks it with the floor off."""
+    from pipeline.config import load_config
+    from pipeline.io.sequence import FramePair
+
+    def frames():
+        rng = np.random.default_rng(7)
+        for k in range(20):
+            ir = (60 + rng.normal(0, 2, (120, 160))).clip(0, 255).astype(np.uint8)
+            ir[50:62, 20 + 3 * k:25 + 3 * k] = 140
+            yield FramePair(k + 1, None, ir)
+
+    cfg = load_config(None, [f"association.min_perimeter_px={min_perimeter_px}"])
+    ids = _ids_by_frame(frames(), cfg)
+    assert (ids[15] != []) == tracked
