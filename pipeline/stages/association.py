@@ -55,7 +55,10 @@ class AssociationConfig(Section):
     confirm_window : int
         ... within its first this many frames (N), >= 1 and >= ``confirm_hits``; default 5.
     max_misses : int
-        A confirmed track is lost after this many frames without a detection, >= 1; default 30.
+        A confirmed track is lost after this many frames without a detection, >= 1; default 1:
+        a detected target's coasting box (its constant-velocity prediction) lies off the target
+        by IoU 0.5 far more often than on it, and a lost track is not gone for good (it stays
+        dormant, ``relink_frames``); raise it where targets move steadily behind occluders.
     coast_per_hit : float
         ... or after more frames without one than this many times the detections it has had,
         >= 0; default 0.5: a track confirmed on a few detections of a passing shadow or a ghost
@@ -71,6 +74,12 @@ class AssociationConfig(Section):
         A lost track stays dormant this many frames, >= 0; default 60: a new track confirmed
         near where a dormant one would be by then takes the dormant one's identity (the
         detector missed the target for a while), 0 disables.
+    resume_min_correlation : float
+        A detection not taken by a live track, within reach of a dormant one (as above) and
+        whose ROI correlates with the dormant track's last ROI by at least this much (Λ_I's
+        correlation), resumes the dormant track at once, >= -1; default 0.8. Above 1: never
+        at once, only when a new track is confirmed there (lower values resume sooner and on
+        look-alikes too).
     position_noise : float
         Process noise of the tracks' constant-velocity Kalman filter (white acceleration,
         (px/frame^2)^2), > 0; default 0.5: detected targets turn and stop.
@@ -93,10 +102,11 @@ class AssociationConfig(Section):
     associator: str = param("hungarian", choices=("hungarian", "chnn"))
     confirm_hits: int = param(3, ge=1)
     confirm_window: int = param(5, ge=1)
-    max_misses: int = param(30, ge=1)
+    max_misses: int = param(1, ge=1)
     coast_per_hit: float = param(0.5, ge=0)
     max_merged_frames: int = param(90, ge=1)
     relink_frames: int = param(60, ge=0)
+    resume_min_correlation: float = param(0.8, ge=-1)
     min_perimeter_px: float = param(40.0, ge=0)
     position_noise: float = param(0.5, gt=0)
     position_std_px: float = param(2.0, gt=0)

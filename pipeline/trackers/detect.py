@@ -265,14 +265,26 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
         r = regions[j]
         if j in group or any(t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2]) for t, p in zip(state.tracks, priors, strict=True)):
             continue  # a blob around a known target (merged targets): not a new one
-        t = _new_track(next_id, r, grey, frames.index, kcfg)
-        events.append(Event(EventKind.BIRTH, f"T{next_id} born at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})", (next_id,)))
-        if a.confirm_hits <= 1:
-            t = dataclasses.replace(t, status=TargetStatus.TRACKING)
+        old = _relink(r.box, dormant, frames.index, a.relink_frames) if a.resume_min_correlation <= 1 else None
+        if old is not None:
+            rho = match_boxes(old.template, old.template_box.as_tuple(), grey, r.box.as_tuple(), cfg.roi_match).correlation
+            if not (np.isfinite(rho) and rho >= a.resume_min_correlation):
+                old = None
+        if old is not None:  # a dormant track detected again, looking as it did: it resumes at once, with its id
+            dormant = tuple(d for d in dormant if d[0].id != old.id)
+            t = dataclasses.replace(_new_track(old.id, r, grey, frames.index, kcfg), status=TargetStatus.TRACKING,
+                                    hits=a.confirm_hits)
+            events.append(Event(EventKind.REACQUIRED, f"T{old.id} detected again", (old.id,)))
+        else:
+            t = _new_track(next_id, r, grey, frames.index, kcfg)
+            events.append(Event(EventKind.BIRTH, f"T{next_id} born at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
+                                (next_id,)))
+            next_id += 1
+            if a.confirm_hits <= 1:
+                t = dataclasses.replace(t, status=TargetStatus.TRACKING)
         tracks.append(t)
-        results.append(TargetResult(next_id, r.box, t.status, "detection", {}, float("nan"), "none",
+        results.append(TargetResult(t.id, r.box, t.status, "detection", {}, float("nan"), "none",
                                     0.2 if t.status == TargetStatus.TENTATIVE else 1.0, (), {"detections": float(len(regions))}, {}))
-        next_id += 1
     timing["detect_tracker"] = time.perf_counter() - t0
     res = FrameResult(frames.index, tuple(sorted(results, key=lambda r: r.id)), tuple(events), timing)
     return DetectState(tuple(tracks), next_id, state.channel, found.background, dormant), res

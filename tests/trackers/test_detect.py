@@ -73,15 +73,16 @@ def _blob_frames(n_on: int, n_total: int):
         yield FramePair(k + 1, None, ir)
 
 
-@pytest.mark.parametrize("coast_per_hit,lost_at", [(0.5, 8), (100.0, 36)])
-def test_a_track_seen_a_few_times_coasts_a_few_frames(coast_per_hit, lost_at):
+@pytest.mark.parametrize("coast_per_hit,max_misses,lost_at", [(0.5, 30, 8), (100.0, 30, 36), (100.0, 1, 7)])
+def test_a_track_seen_a_few_times_coasts_a_few_frames(coast_per_hit, max_misses, lost_at):
     """Confirmed after 3 detections, seen in frames 1-5, then gone: lost once its misses exceed coast_per_hit x 5
-    (2.5: its 3rd missing frame, frame 8), not after association.max_misses (30: frame 36) of coasting on nothing."""
+    (2.5: its 3rd missing frame, frame 8), not after association.max_misses (30: frame 36) of coasting on nothing;
+    with the default max_misses (1), on its 2nd missing frame."""
     from pipeline.config import load_config
     from pipeline.trackers.detect import init, step
     from pipeline.types import TargetStatus
 
-    cfg = load_config(None, [f"association.coast_per_hit={coast_per_hit}"])
+    cfg = load_config(None, [f"association.coast_per_hit={coast_per_hit}", f"association.max_misses={max_misses}"])
     state, lost = None, None
     for fp in _blob_frames(5, 40):
         state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
@@ -157,20 +158,25 @@ def _ids_by_frame(frames, cfg):
     return ids
 
 
-@pytest.mark.parametrize("relink_frames,jump_px,same", [(60, 0, True), (0, 0, False), (60, 100, False)])
-def test_a_target_lost_and_found_again_keeps_its_identity(relink_frames, jump_px, same):
-    """Seen in frames 1-20, undetected in 21-45 (lost on its 6th missing frame), seen again from 46 where its
-    walk has taken it: the new track, confirmed at frame 48, takes the lost track's id when a lost track stays
-    dormant (``relink_frames``); not when that is off, nor when it reappears 100 px beyond where its walk took it (farther than
-    it could have gone at 1 px a frame over its speed)."""
+@pytest.mark.parametrize("relink_frames,resume,jump_px,back_at", [(60, 0.8, 0, 46), (60, 2.0, 0, 48), (0, 0.8, 0, None),
+                                                                   (60, 0.8, 100, None)])
+def test_a_target_lost_and_found_again_keeps_its_identity(relink_frames, resume, jump_px, back_at):
+    """Seen in frames 1-20, undetected in 21-45 (lost on its 2nd missing frame), seen again from 46 where its
+    walk has taken it: with a lost track dormant (``relink_frames``) it has its id again at once (frame 46: its
+    ROI looks as it did), or when the new track is confirmed (frame 48) with ``resume_min_correlation`` above 1;
+    never when dormancy is off, nor when it reappears 100 px beyond where its walk took it (farther than it could
+    have gone at 1 px a frame over its speed)."""
     from pipeline.config import load_config
 
-    cfg = load_config(None, [f"association.relink_frames={relink_frames}"])
+    cfg = load_config(None, [f"association.relink_frames={relink_frames}",
+                             f"association.resume_min_correlation={resume}"])
     ids = _ids_by_frame(_gap_frames((21, 45), 60, jump_px), cfg)
     assert ids[20] == [1]
     assert ids[30] == []  # lost, and not reported while dormant
     assert len(ids[55]) == 1
-    assert (ids[55] == [1]) == same
+    assert (ids[55] == [1]) == (back_at is not None)
+    if back_at is not None:
+        assert ids[back_at] == [1] and ids[back_at - 1] == []
 
 
 @pytest.mark.parametrize("min_perimeter_px,tracked", [(40.0, False), (0.0, True)])
