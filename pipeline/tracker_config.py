@@ -248,6 +248,15 @@ class CamShiftConfig(Section):
         target shares with its surround (trousers of the lawn's hue) then barely draw
         CamShift's window out of the target. Larger surrounds weigh down colours that
         are only far away. The plain ``camshift`` peer never weights.
+    max_scale_step : float
+        ``kalman-camshift`` measures a target's size from CamShift's window only as a scale of
+        its last good box (the square root of their areas' ratio), changed by at most this
+        fraction a frame, its aspect ratio kept, in [0, 1]; default 0.01. CamShift's moments
+        shrink the window onto the part of a target whose colour the model holds best, and
+        stretch it onto same-coloured surroundings, a frame at a time; a target that
+        approaches or recedes changes its size steadily and slowly. Larger values follow fast
+        approaches sooner and let the window's jitter and bias in; 1 measures CamShift's
+        window as it is (the paper's). The plain ``camshift`` peer always takes the window.
     """
 
     section = "camshift"
@@ -260,6 +269,7 @@ class CamShiftConfig(Section):
     epsilon_px: float = param(1.0, gt=0)
     saturation_bins: int = param(4, ge=1, le=16)
     background_weighting_scale: float = param(2.0, ge=0, le=5)
+    max_scale_step: float = param(0.01, ge=0, le=1)
 
 
 @dataclass(frozen=True)

@@ -72,6 +72,14 @@ class OcclusionConfig(Section):
         Beyond the paper: frames in a row without a measurement (partial or severe) after
         which the target is lost, >= 1; default 100. A prediction that leaves the frame is
         lost at once.
+    sampling_noise : bool
+        Beyond the paper: Tb and ``reacquire_distance`` are widened, for each target, by the
+        distance that sampling noise alone puts between two of its colour histograms
+        (:func:`pipeline.stages.camshift.sampling_distance` on its first box), added in
+        quadrature; default True. The paper's Tb suits a target of some thousand pixels,
+        whose noise is about 0.1 and barely moves it; a person 6 x 13 px wide has a noise of
+        about 0.4, and with the paper's Tb its every frame would count as occluded. False: the
+        thresholds as given.
     """
 
     section = "occlusion"
@@ -88,6 +96,7 @@ class OcclusionConfig(Section):
     history_frames: int = param(16, ge=2, le=100)
     size_change_occludes: bool = True
     max_missing_frames: int = param(100, ge=1)
+    sampling_noise: bool = True
 
     def check(self) -> None:
         if not self.reacquire_distance <= self.distance_threshold:

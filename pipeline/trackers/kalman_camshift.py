@@ -48,6 +48,11 @@ Beyond the paper:
   (``camshift.background_weighting_scale``, the corrected background-weighted histogram of
   Ning et al. 2012), so that colours the target shares with the ground barely pull CamShift's
   window off it;
+* the size measured is the last good box's, scaled by CamShift's area within
+  ``camshift.max_scale_step`` a frame with its aspect ratio kept (:func:`scaled_like`):
+  CamShift's moments shrink the window onto the target's best-matching part;
+* Tb and the re-acquisition distance are widened by the target's own sampling noise
+  (``occlusion.sampling_noise``): a small target's histogram is noisy;
 * coasting is bounded: a prediction that leaves the frame, or ``occlusion.max_missing_frames``
   frames without a measurement, end in ``lost``, where the motion stops.
 """
@@ -55,6 +60,8 @@ Beyond the paper:
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -73,6 +80,7 @@ from pipeline.stages.camshift import (
     feature,
     histogram,
     kernel_masked_histogram,
+    sampling_distance,
     to_hsv,
     weighted_model,
 )
@@ -80,6 +88,7 @@ from pipeline.stages.histogram import bhattacharyya, bhattacharyya_distance
 from pipeline.stages.motion import coast_start, hold_rates, stop
 from pipeline.stages.occlusion import (
     AreaReference,
+    OcclusionConfig,
     Grade,
     grade_occlusion,
     is_lost,
@@ -111,6 +120,7 @@ class KCTarget:
     severe_run: int = 0
     history: tuple[tuple[float, float, float, float, float], ...] = ()  # clean (frame, cx, cy, w, h), newest last
     missing_run: int = 0  # frames in a row without a measurement
+    noise_d: float = 0.0  # the colour distance sampling noise alone gives this target (camshift.sampling_distance)
 
 
 @dataclass(frozen=True)
@@ -145,7 +155,9 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) 
             q = weighted_model(q, background_weights(f, t.box, cfg.camshift.background_weighting_scale))
         colour = kernel_masked_histogram(fc, t.box)
         kf = kalman.init_state(t.box, cfg.kalman)
-        states.append(KCTarget(t.id, kf, q, colour, TargetStatus.TRACKING, t.box, AreaReference((t.box.area,))))
+        noise = sampling_distance(fc, t.box) if cfg.occlusion.sampling_noise else 0.0
+        states.append(KCTarget(t.id, kf, q, colour, TargetStatus.TRACKING, t.box, AreaReference((t.box.area,)),
+                               noise_d=noise))
         results.append(TargetResult(t.id, t.box, TargetStatus.TRACKING, "init", rho=1.0))
     return KCState(tuple(states), channel), FrameResult(frames.index, tuple(results))
 
@@ -176,6 +188,22 @@ def _fixed_size_candidates(prob: np.ndarray, center: tuple[float, float], size: 
     return out
 
 
+@functools.lru_cache(maxsize=256)
+def _noise_aware(ocfg: OcclusionConfig, noise_d: float) -> OcclusionConfig:
+    """The occlusion thresholds Tb and the re-acquisition distance widened by the target's
+    sampling noise, added in quadrature."""
+    return dataclasses.replace(ocfg, distance_threshold=min(math.hypot(ocfg.distance_threshold, noise_d), 1.0),
+                               reacquire_distance=min(math.hypot(ocfg.reacquire_distance, noise_d), 1.0))
+
+
+def scaled_like(found: BBox, last: BBox, max_step: float) -> BBox:
+    """``last`` moved to ``found``'s centre and scaled by the square root of their areas' ratio,
+    the scale held within ``1 +- max_step`` (``camshift.max_scale_step``)."""
+    s = (found.area / max(last.area, 1e-9)) ** 0.5
+    s = min(max(s, 1.0 - max_step), 1.0 + max_step)
+    return BBox.from_center(found.cx, found.cy, last.w * s, last.h * s)
+
+
 def _search_window(prior_box: BBox, scale: float, width: int, height: int) -> BBox:
     return _clip_center(prior_box.scaled(scale), width, height).clip(width, height)
 
@@ -189,6 +217,8 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
                  ) -> tuple[KCTarget, TargetResult, list[Event]]:
     """One frame of Kalman-CAMShift for one target."""
     kcfg, ocfg, ccfg = cfg.kalman, cfg.occlusion, cfg.camshift
+    if t.noise_d > 0:
+        ocfg = _noise_aware(ocfg, t.noise_d)
     F, Q = kalman.motion_model(kcfg)
     H, R = kalman.measurement_model(kcfg)
     h, w = image.shape[:2]
@@ -229,6 +259,8 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
         found = BBox.from_center(found.cx, found.cy, t.last_rect.w, t.last_rect.h)
         source = "camshift-position"
     outside = pbox.clip(w, h).area < 0.25 * pbox.area
+    if grade == Grade.NONE and source == "camshift" and found is not None and ccfg.max_scale_step < 1:
+        found = scaled_like(found, t.last_rect, ccfg.max_scale_step)
     if grade == Grade.NONE and found is not None:
         kf = kalman.correct(prior, kalman.box_measurement(found), H, R, kcfg).state
         out, status, last_rect = found, TargetStatus.TRACKING, found

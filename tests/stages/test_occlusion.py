@@ -63,3 +63,36 @@ def test_linear_fit_recovers_planted_motion():
 def test_bad_config(kw):
     with pytest.raises(ValueError):
         OcclusionConfig(**kw)
+
+
+def test_sampling_distance_falls_with_the_target_s_pixels_and_is_zero_for_one_colour():
+    """Random colours drawn from 8 equally likely bins: the distance between the two checkerboard halves, over
+    sqrt(2), goes as sqrt((K - 1) / (4 N_eff)): about 0.16 for an 8 x 16 px box (100 pixels, fewer in effect under the
+    kernel's weights), a quarter of that for a box of sixteen times the pixels; a box of one colour has none."""
+    from pipeline.stages.camshift import Feature, sampling_distance
+    from pipeline.types import BBox
+
+    rng = np.random.default_rng(0)
+    bins = rng.integers(0, 8, (200, 200)).astype(np.uint8)
+    f = Feature(bins, np.ones(bins.shape, bool), 8)
+    small = np.mean([sampling_distance(f, BBox(x, 10, 8, 16)) for x in range(10, 190, 12)])
+    large = np.mean([sampling_distance(f, BBox(x, 40, 32, 64)) for x in range(10, 160, 30)])
+    assert 0.1 < small < 0.2 and 0.025 < large < 0.05
+    assert 3 < small / large < 5
+    flat = Feature(np.full((60, 60), 3, np.uint8), np.ones((60, 60), bool), 8)
+    assert sampling_distance(flat, BBox(10, 10, 20, 30)) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_camshift_window_is_measured_as_a_scale_of_the_last_box():
+    """The last box moved to the window's centre and scaled by sqrt(area ratio), within 1 +- max_step; its aspect
+    ratio kept whatever the window's."""
+    from pipeline.trackers.kalman_camshift import scaled_like
+    from pipeline.types import BBox
+
+    last = BBox(0, 0, 20, 40)
+    shrunk = scaled_like(BBox(50, 50, 20, 20), last, 0.01)  # a window on the torso: half the area
+    assert shrunk.as_tuple() == pytest.approx((60 - 9.9, 60 - 19.8, 19.8, 39.6))
+    same = scaled_like(BBox(10, 10, 40, 20), last, 0.01)  # same area, other aspect: size unchanged
+    assert (same.w, same.h) == pytest.approx((20, 40))
+    free = scaled_like(BBox(0, 0, 40, 80), last, 1.0)
+    assert (free.w, free.h) == pytest.approx((40, 80))
