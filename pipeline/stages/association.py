@@ -70,6 +70,11 @@ class AssociationConfig(Section):
         least this long, px, >= 0; default 40: the detector's smaller regions (distant people,
         but also a target's warm parts) give boxes too small for the target they lie on and
         pull its track onto a part; 0 uses every region the detector keeps.
+    use_visible_regions : bool
+        Whether the detection-driven tracker also uses the regions the detector finds in the
+        visible channel with weak IR support (``detection.visible_support_k``); default
+        False: they find more of the targets, but also start tracks on the visible
+        channel's false foreground, which costs more (MOTA) than the targets gained.
     relink_frames : int
         A lost track stays dormant this many frames, >= 0; default 60: a new track confirmed
         near where a dormant one would be by then takes the dormant one's identity (the
@@ -108,6 +113,7 @@ class AssociationConfig(Section):
     relink_frames: int = param(60, ge=0)
     resume_min_correlation: float = param(0.8, ge=-1)
     min_perimeter_px: float = param(40.0, ge=0)
+    use_visible_regions: bool = False
     position_noise: float = param(0.5, gt=0)
     position_std_px: float = param(2.0, gt=0)
     split_touching: bool = False

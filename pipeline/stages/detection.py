@@ -102,6 +102,15 @@ class DetectionConfig(Section):
         default False: textured facades and moving cloud shadows fire in the visible
         channel far more often than targets missing from the IR are found (see
         docs/benchmarks.md).
+    visible_support_k : float
+        With ``foreground`` on the IR frame and a registered visible frame: where the IR
+        finds nothing, a region of the visible foreground (:func:`visible_foreground`) that
+        the IR frame supports weakly, differing from its background (either way, smoothed
+        over 5 px) by this many robust deviations, is a detection too (``rois.csv`` reason
+        ``visible``), >= 0; default 4; 0 turns it off. It finds targets at the ground's
+        temperature that the visible channel shows, while the visible channel's own false
+        foreground (texture shifted by shake, lighting) has no IR support. Lower values find
+        fainter targets and let in more false regions.
     window_px : int
         Side of the STDM window, odd, in [3, 31]; default 7 (about 1/4 to 1/2 of a target's
         width: high on the target's boundary).
@@ -165,6 +174,7 @@ class DetectionConfig(Section):
     foreground_min_contrast: float = param(5.0, ge=0)
     jitter_px: int = param(1, ge=0, le=5)
     fuse_visible: bool = False
+    visible_support_k: float = param(4.0, ge=0)
     window_px: int = param(7, ge=3, le=31, odd=True)
     threshold: str = param("global", choices=("global", "local"))
     threshold_window_px: int = param(61, ge=9, le=255, odd=True)
@@ -193,6 +203,7 @@ class RegionReason(enum.StrEnum):
     TOO_LARGE = "too-large"  # over it
     ELONGATED = "elongated"  # minimum-area-rectangle aspect over ``max_aspect``
     COMPLEX = "complex"  # C2 over ``max_complexity``
+    VISIBLE = "visible"  # kept: the visible channel's foreground with weak IR support, where the IR found nothing
 
 
 @dataclass(frozen=True)
@@ -380,6 +391,32 @@ def visible_foreground(lab: np.ndarray, bg: np.ndarray, cfg: DetectionConfig) ->
     return ((dc > thr(dc)) | (dL > thr(np.abs(dL)))).astype(np.uint8)
 
 
+def visible_supported(vfg: np.ndarray, grey: np.ndarray, background: np.ndarray, found: list[Region],
+                      cfg: DetectionConfig) -> tuple[list[Region], list[Region]]:
+    """(accepted, rejected) regions of the visible foreground ``vfg`` (uint8 0/1) where the IR
+    frame ``grey`` differs from its ``background`` (absolute difference smoothed by a 5 px
+    Gaussian) by more than its median plus ``cfg.visible_support_k`` robust deviations, cleaned
+    as :func:`clean` does and discriminated as the IR regions are; those holding the centroid
+    of a region in ``found`` (the IR's, kept), or whose centroid one holds, are left out.
+    The accepted ones carry the reason ``visible``."""
+    from dataclasses import replace
+
+    diff = cv2.GaussianBlur(cv2.absdiff(grey.astype(np.float32), background.astype(np.float32)), (5, 5), 0)
+    step = max(1, int(np.sqrt(diff.size / 4096)))
+    sub = diff[::step, ::step].ravel()
+    med = float(np.median(sub))
+    thr = med + cfg.visible_support_k * 1.4826 * float(np.median(np.abs(sub - med)))
+    _, contours = _clean_contours(vfg & (diff > thr).astype(np.uint8), cfg)
+    ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
+
+    def apart(r: Region) -> bool:
+        return not any((f.box.x <= r.centroid[0] <= f.box.x2 and f.box.y <= r.centroid[1] <= f.box.y2)
+                       or (r.box.x <= f.centroid[0] <= r.box.x2 and r.box.y <= f.centroid[1] <= r.box.y2)
+                       for f in found)
+
+    return ([replace(r, reason=RegionReason.VISIBLE) for r in ok if apart(r)], [r for r in bad if apart(r)])
+
+
 def to_grey(frame: np.ndarray) -> np.ndarray:
     """A single-channel view of a frame (BGR converted)."""
     return frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
@@ -563,14 +600,20 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
         seen = Background(shift_image(bg.estimate, dx, dy), bg.frames,
                           None if bg.visible is None else shift_image(bg.visible, dx, dy), True)
     fg = foreground(grey, seen, cfg)
-    lab = None
-    if cfg.fuse_visible and visible is not None and visible.ndim == 3 and visible.shape[:2] == grey.shape:
+    lab = vfg = None
+    if (cfg.fuse_visible or cfg.visible_support_k > 0) and visible is not None and visible.ndim == 3 \
+            and visible.shape[:2] == grey.shape:
         lab = cv2.cvtColor(visible, cv2.COLOR_BGR2LAB).astype(np.float32)
         if seen.visible is not None:
-            fg |= visible_foreground(lab, seen.visible, cfg)
+            vfg = visible_foreground(lab, seen.visible, cfg)
+            if cfg.fuse_visible:
+                fg |= vfg
     mask, contours = _clean_contours(fg, cfg)
     contours = split_touching(contours, cfg.split_core_fraction, cfg.split_min_core_px)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
+    if vfg is not None and not cfg.fuse_visible and cfg.visible_support_k > 0:
+        more, less = visible_supported(vfg, grey, seen.estimate, ok, cfg)
+        ok, bad = ok + more, bad + less
     if bg.static:
         return Detections(tuple(ok), tuple(bad), np.zeros((1, 1), np.float32), mask, bg)
     # the background learns slowly only under what looks like a target (a region kept): a band or an edge the

@@ -41,7 +41,7 @@ from pipeline.io.sequence import FramePair
 from pipeline.io.sequence import Sequence as FrameSequence
 from pipeline.stages import kalman
 from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
-from pipeline.stages.detection import Background, DetectionConfig, Region, detect, to_grey
+from pipeline.stages.detection import Background, DetectionConfig, Region, RegionReason, detect, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.trackers.base import BackgroundEngine, detector_channel, pick_channel
 from pipeline.types import (
@@ -163,7 +163,8 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
     H, W = grey.shape
     found = detect(grey, _detection_cfg(cfg.detection, a.split_touching), state.background,
                    frames.visible if state.channel == "infrared" else None)
-    regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px]
+    regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px
+               and (a.use_visible_regions or r.reason != RegionReason.VISIBLE)]
     t1 = time.perf_counter()
     timing["detection"] = t1 - t0
     priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]

@@ -279,3 +279,40 @@ def test_a_distant_person_is_kept_and_noise_specks_are_not():
     assert d.regions[0].centroid == pytest.approx((20 + 48 + 2.5, 56), abs=1.5)
     old = detect(frames[12], DetectionConfig(perimeter_px=(40.0, 900.0), min_area_px=40), bg)
     assert not old.regions and [r.reason for r in old.rejected] == ["too-small"]
+
+
+def cold_person_frames(n: int = 25, light_at: int | None = 12) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """(IR, visible BGR) frames: a 10 x 24 px person in a red coat walking right 5 px a frame from x = 10 on grey
+    ground, only 4 grey levels warmer than the ground in the IR (under the IR foreground's threshold); on frame
+    ``light_at`` (0-based) a patch of the visible ground brightens with no IR change."""
+    rng = np.random.default_rng(4)
+    ground_ir = cv2.GaussianBlur(rng.normal(90, 8, (120, 160)), (0, 0), 3)
+    ground_vis = np.full((120, 160, 3), 128.0) + rng.normal(0, 3, (120, 160, 3))
+    irs, viss = [], []
+    for k in range(n):
+        ir = ground_ir + rng.normal(0, 1.5, ground_ir.shape)
+        vis = ground_vis + rng.normal(0, 2, ground_vis.shape)
+        x = 10 + 5 * k
+        ir[50:74, x:x + 10] += 4
+        vis[50:74, x:x + 10] = (40, 40, 200)  # BGR red
+        if k == light_at:
+            vis[10:30, 120:150] += 60
+        irs.append(np.clip(ir, 0, 255).astype(np.uint8))
+        viss.append(np.clip(vis, 0, 255).astype(np.uint8))
+    return irs, viss
+
+
+def test_a_target_at_the_ground_s_temperature_is_found_in_the_visible_channel_with_weak_ir_support():
+    """The person of :func:`cold_person_frames` is a region with reason ``visible``; the patch of light, with no IR
+    support, is none; with ``visible_support_k`` 0 neither is."""
+    from pipeline.stages.detection import RegionReason
+
+    irs, viss = cold_person_frames()
+    labs = [cv2.cvtColor(v, cv2.COLOR_BGR2LAB).astype(np.float32) for v in viss]
+    cfg = DetectionConfig()
+    bg = quantile_background(irs, cfg, labs)
+    d = detect(irs[12], cfg, bg, viss[12])
+    assert [r.reason for r in d.regions] == [RegionReason.VISIBLE], [(r.box, r.reason) for r in d.regions]
+    assert d.regions[0].centroid == pytest.approx((10 + 60 + 5, 62), abs=2.0)
+    assert abs(d.regions[0].box.h - 24) <= 4
+    assert not detect(irs[12], DetectionConfig(visible_support_k=0), bg, viss[12]).regions

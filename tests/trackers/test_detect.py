@@ -196,3 +196,27 @@ def test_the_tracker_leaves_regions_under_its_own_floor_to_the_detector(min_peri
     cfg = load_config(None, [f"association.min_perimeter_px={min_perimeter_px}"])
     ids = _ids_by_frame(frames(), cfg)
     assert (ids[15] != []) == tracked
+
+
+@pytest.mark.parametrize("use_visible,tracked", [(False, False), (True, True)])
+def test_the_tracker_uses_the_visible_channel_s_regions_only_on_request(tmp_path, use_visible, tracked):
+    """A person at the ground's temperature, found by the detector only in the visible channel: the detect tracker
+    leaves the region alone by default (``association.use_visible_regions``) and tracks the person with it on."""
+    import cv2
+
+    from pipeline.config import load_config
+    from pipeline.run import track
+    from tests.stages.test_detection import cold_person_frames
+
+    irs, viss = cold_person_frames(25, light_at=None)
+    for ch, frames in (("infrared", irs), ("visible", viss)):
+        (tmp_path / ch).mkdir()
+        for k, f in enumerate(frames):
+            cv2.imwrite(str(tmp_path / ch / f"{k + 1:05d}.png"), f)
+        (tmp_path / f"{ch}.txt").write_text("".join(f"{10 + 5 * k},50,10,24\n" for k in range(len(frames))))
+    cfg = load_config(None, [f"association.use_visible_regions={str(use_visible).lower()}"])
+    res = track(tmp_path, tracker="detect", config=cfg)
+    boxes = [t.box for t in res[15].targets if t.status.value == "tracking"]
+    assert (len(boxes) == 1) == tracked
+    if tracked:
+        assert boxes[0].cx == pytest.approx(10 + 75 + 5, abs=3) and boxes[0].cy == pytest.approx(62, abs=3)
