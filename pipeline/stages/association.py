@@ -76,9 +76,10 @@ class AssociationConfig(Section):
         False: they find more of the targets, but also start tracks on the visible
         channel's false foreground, which costs more (MOTA) than the targets gained.
     relink_frames : int
-        A lost track stays dormant this many frames, >= 0; default 60: a new track confirmed
-        near where a dormant one would be by then takes the dormant one's identity (the
-        detector missed the target for a while), 0 disables.
+        A lost track stays dormant this many frames, >= 0; default 60: a detection near where
+        a dormant one would be by then resumes it (``resume_min_correlation``), and a new
+        track confirmed there takes its identity (the detector missed the target for a
+        while); 0 disables.
     resume_min_correlation : float
         A detection not taken by a live track, within reach of a dormant one (as above) and
         whose ROI correlates with the dormant track's last ROI by at least this much (Λ_I's

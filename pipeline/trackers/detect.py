@@ -13,9 +13,10 @@ The system of the ROI feature-matching fusion paper, no initial boxes needed:
 5. update matched tracks (box and template chip), coast the others; unmatched detections
    start tentative tracks, confirmed after M of N frames; a track missed ``max_misses``
    frames, or more than ``coast_per_hit`` times the detections it has had, or predicted out
-   of the frame, is lost; it stays dormant ``relink_frames`` frames, and a new track
-   confirmed where it could have walked to by then takes its id (:func:`_relink`): the
-   detector missed the target for a while.
+   of the frame, is lost; it stays dormant ``relink_frames`` frames (not reported): a
+   detection where it could have walked to by then (:func:`_relink`) whose ROI correlates
+   with its last one by ``resume_min_correlation`` resumes it at once, and a new track
+   confirmed there takes its id (the detector missed the target for a while).
 
 Statuses: ``tentative`` (not yet confirmed; in targets.csv, not in tracks.csv),
 ``tracking``, ``merged`` (not detected on its own but its prediction lies inside a detected
@@ -293,7 +294,8 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
 
 def _relink(box: BBox, dormant: Sequence[tuple[DetTrack, int]], frame: int,
             max_frames: int) -> DetTrack | None:
-    """The dormant track that a track confirmed at ``frame`` on ``box`` continues, or None.
+    """The dormant track that a detection (or a newly confirmed track) at ``frame`` on ``box``
+    continues, or None.
 
     A dormant track, last detected ``gap`` frames ago at centre ``c0`` with velocity ``v`` (its
     Kalman state), is a candidate when it was lost at most ``max_frames`` frames ago, its
