@@ -170,14 +170,18 @@ def _clip_center(box: BBox, width: int, height: int) -> BBox:
 
 
 def _fixed_size_candidates(prob: np.ndarray, center: tuple[float, float], size: BBox, scale: float,
-                           cfg_cs: object) -> list[BBox]:
+                           cfg_cs: object, last_seen: tuple[float, float] | None = None) -> list[BBox]:
     """The paper's search during severe occlusion: a fixed-size window (``cv2.meanShift``), from the
     prediction with the target's last good size, and once more after a first pass with the window
-    enlarged ``scale`` times (to reach a target that re-appears away from its prediction)."""
+    enlarged ``scale`` times (to reach a target that re-appears away from its prediction); and from
+    ``last_seen``, where the target was last measured cleanly, when given (a target that stopped
+    behind the occluder while its prediction coasted on)."""
     h, w = prob.shape
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg_cs.max_iterations, cfg_cs.epsilon_px)
     out = []
     starts = [center]
+    if last_seen is not None and 0 <= last_seen[0] < w and 0 <= last_seen[1] < h:
+        starts.append(last_seen)
     big = BBox.from_center(center[0], center[1], size.w * scale, size.h * scale)
     _, win = cv2.meanShift(prob, _clip_center(big, w, h).to_cv(w, h), crit)
     starts.append((win[0] + win[2] / 2, win[1] + win[3] / 2))
@@ -242,8 +246,9 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
     source = "camshift"
     if missing and d >= ocfg.reacquire_distance:
         # re-acquisition check with the fixed size the paper prescribes while the target is missing
+        seen = (t.history[-1][1] - x0, t.history[-1][2] - y0) if t.history else None
         for fixed in _fixed_size_candidates(prob, (pbox.cx - x0, pbox.cy - y0), t.last_rect,
-                                            ocfg.missing_search_scale, ccfg):
+                                            ocfg.missing_search_scale, ccfg, seen):
             d_fixed = _match(fc, fixed, t.colour)
             if d_fixed < d:
                 found, d, area, source = fixed.shifted(x0, y0), d_fixed, fixed.area, "meanshift-fixed"
