@@ -62,7 +62,7 @@ class SequenceBackground:
         return self._bg
 
     def _estimate(self, block: int) -> Background | None:
-        fuse = (self.cfg.fuse_visible or self.cfg.visible_support_k > 0) and self.channel == "infrared"
+        fuse = self.cfg.uses_visible and self.channel == "infrared"
         greys, labs = [], []
         for i in self.sample_indices(block):
             try:

@@ -27,7 +27,7 @@ from __future__ import annotations
 import enum
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -188,6 +188,12 @@ class DetectionConfig(Section):
     max_complexity: float = param(5.0, ge=1)
     split_core_fraction: float = param(0.7, ge=0, lt=1)
     split_min_core_px: int = param(10, ge=1)
+
+    @property
+    def uses_visible(self) -> bool:
+        """Whether the detector looks at a registered visible frame (``fuse_visible`` or
+        ``visible_support_k``), and its background keeps the visible channel's too."""
+        return self.fuse_visible or self.visible_support_k > 0
 
     def check(self) -> None:
         lo, hi = self.perimeter_px
@@ -399,7 +405,6 @@ def visible_supported(vfg: np.ndarray, grey: np.ndarray, background: np.ndarray,
     as :func:`clean` does and discriminated as the IR regions are; those holding the centroid
     of a region in ``found`` (the IR's, kept), or whose centroid one holds, are left out.
     The accepted ones carry the reason ``visible``."""
-    from dataclasses import replace
 
     diff = cv2.GaussianBlur(cv2.absdiff(grey.astype(np.float32), background.astype(np.float32)), (5, 5), 0)
     step = max(1, int(np.sqrt(diff.size / 4096)))
@@ -415,6 +420,14 @@ def visible_supported(vfg: np.ndarray, grey: np.ndarray, background: np.ndarray,
                        for f in found)
 
     return ([replace(r, reason=RegionReason.VISIBLE) for r in ok if apart(r)], [r for r in bad if apart(r)])
+
+
+@functools.lru_cache(maxsize=8)
+def infrared_only(cfg: DetectionConfig) -> DetectionConfig:
+    """``cfg`` without the settings that need the visible frame (``fuse_visible``,
+    ``visible_support_k``): for a detector that is never given one, so that its sequence
+    background does not estimate the visible channel's for nothing."""
+    return replace(cfg, fuse_visible=False, visible_support_k=0.0) if cfg.uses_visible else cfg
 
 
 def to_grey(frame: np.ndarray) -> np.ndarray:
@@ -557,7 +570,6 @@ def regions_from_contours(contours: list[np.ndarray] | tuple[np.ndarray, ...], m
 
 def discriminate(found: list[Region], cfg: DetectionConfig) -> tuple[list[Region], list[Region]]:
     """(accepted, rejected with the reason) by boundary length, aspect ratio and complexity."""
-    from dataclasses import replace
 
     ok, bad = [], []
     lo, hi = cfg.perimeter_px
@@ -601,8 +613,7 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
                           None if bg.visible is None else shift_image(bg.visible, dx, dy), True)
     fg = foreground(grey, seen, cfg)
     lab = vfg = None
-    if (cfg.fuse_visible or cfg.visible_support_k > 0) and visible is not None and visible.ndim == 3 \
-            and visible.shape[:2] == grey.shape:
+    if cfg.uses_visible and visible is not None and visible.ndim == 3 and visible.shape[:2] == grey.shape:
         lab = cv2.cvtColor(visible, cv2.COLOR_BGR2LAB).astype(np.float32)
         if seen.visible is not None:
             vfg = visible_foreground(lab, seen.visible, cfg)
@@ -628,7 +639,6 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
 
 def _unpad(r: Region, window_px: int) -> Region:
     """The STDM ring straddles the target's edge by half a window: shrink the box by that much."""
-    from dataclasses import replace
 
     half = (window_px - 1) / 2
     b = r.box

@@ -7,6 +7,7 @@ from collections.abc import Callable
 from pipeline.config import PipelineConfig
 from pipeline.errors import InputError
 from pipeline.stages import appearance, contour, histogram
+from pipeline.stages.detection import infrared_only
 from pipeline.trackers import detect as _detect
 from pipeline.trackers import dual as _dual
 from pipeline.trackers import kalman_camshift as _kc
@@ -25,7 +26,8 @@ def _engine(name: str, init: Callable, step: Callable, *warm_ups: Callable[[], N
         for warm_up in warm_ups:
             warm_up()
         if background:
-            return BackgroundEngine(name, init, step, cfg, _dual_detector_channel, lazy=True)
+            return BackgroundEngine(name, init, step, cfg, _dual_detector_channel, lazy=True,
+                                    detection=lambda c: infrared_only(c.detection))
         return FunctionalEngine(name, init, step, cfg)
 
     return make

@@ -27,6 +27,7 @@ from collections.abc import Callable, Sequence
 from typing import Generic, Protocol, TypeVar
 
 from pipeline.config import PipelineConfig
+from pipeline.stages.detection import DetectionConfig
 from pipeline.io.sequence import FramePair
 from pipeline.types import FrameResult, InitTarget
 
@@ -83,20 +84,25 @@ class BackgroundEngine(FunctionalEngine[S]):
     ``channel`` picks the detector's channel from the sequence's channels. With ``lazy``, what is put
     there is a function of no arguments returning the background, so that a tracker that seldom runs
     its detector (the dual tracker's whole-frame search) reads the sequence's samples only if it does.
+    ``detection`` gives the detection settings the engine's detector runs with (default: the
+    configuration's ``detection`` section), which decide what the background estimates.
     """
 
     def __init__(self, name: str, init: Callable[..., tuple[S, FrameResult]],
                  step: Callable[[S, FramePair, PipelineConfig], tuple[S, FrameResult]], cfg: PipelineConfig,
-                 channel: Callable[[tuple[str, ...], PipelineConfig], str], lazy: bool = False):
+                 channel: Callable[[tuple[str, ...], PipelineConfig], str], lazy: bool = False,
+                 detection: Callable[[PipelineConfig], DetectionConfig] | None = None):
         super().__init__(name, init, step, cfg)
         self._channel = channel
+        self._detection = detection
         self._lazy = lazy
         self._source = None
 
     def attach(self, seq) -> None:
         from pipeline.io.background import sequence_background
 
-        self._source = sequence_background(seq, self._channel(tuple(seq.channels), self.cfg), self.cfg.detection)
+        dcfg = self._detection(self.cfg) if self._detection is not None else self.cfg.detection
+        self._source = sequence_background(seq, self._channel(tuple(seq.channels), self.cfg), dcfg)
 
     def _background(self, index: int):
         if self._source is None:

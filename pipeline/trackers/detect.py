@@ -42,7 +42,7 @@ from pipeline.io.sequence import FramePair
 from pipeline.io.sequence import Sequence as FrameSequence
 from pipeline.stages import kalman
 from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
-from pipeline.stages.detection import Background, DetectionConfig, Region, RegionReason, detect, to_grey
+from pipeline.stages.detection import Background, DetectionConfig, Region, detect, infrared_only, to_grey
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.trackers.base import BackgroundEngine, detector_channel, pick_channel
 from pipeline.types import (
@@ -107,7 +107,7 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig,
 def make_engine(cfg: PipelineConfig) -> BackgroundEngine[DetectState]:
     """The detection-driven tracker as an engine; attached to a sequence, its detector uses the sequence's
     background (``detection.background_init = "sequence"``)."""
-    return BackgroundEngine("detect", init, step, cfg, detector_channel)
+    return BackgroundEngine("detect", init, step, cfg, detector_channel, detection=detection_settings)
 
 
 def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState], regions: Sequence[Region],
@@ -145,10 +145,18 @@ def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState
 
 
 @functools.lru_cache(maxsize=8)
-def _detection_cfg(dcfg: DetectionConfig, split_touching: bool) -> DetectionConfig:
+def _detection_cfg(dcfg: DetectionConfig, a: AssociationConfig) -> DetectionConfig:
     """The detection settings the tracker runs with: touching regions are split only on request
-    (``association.split_touching``); made once per configuration, not every frame."""
-    return dcfg if split_touching else dataclasses.replace(dcfg, split_core_fraction=0.0)
+    (``association.split_touching``), the visible channel's regions only looked for on request
+    (``association.use_visible_regions``); made once per configuration, not every frame."""
+    if not a.split_touching:
+        dcfg = dataclasses.replace(dcfg, split_core_fraction=0.0)
+    return dcfg if a.use_visible_regions else infrared_only(dcfg)
+
+
+def detection_settings(cfg: PipelineConfig) -> DetectionConfig:
+    """What :func:`step`'s detector runs with (the engine's sequence background follows it)."""
+    return _detection_cfg(cfg.detection, cfg.association)
 
 
 def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[DetectState, FrameResult]:
@@ -162,10 +170,9 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
     image = getattr(frames, state.channel)
     grey = to_grey(image)
     H, W = grey.shape
-    found = detect(grey, _detection_cfg(cfg.detection, a.split_touching), state.background,
+    found = detect(grey, detection_settings(cfg), state.background,
                    frames.visible if state.channel == "infrared" else None)
-    regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px
-               and (a.use_visible_regions or r.reason != RegionReason.VISIBLE)]
+    regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px]
     t1 = time.perf_counter()
     timing["detection"] = t1 - t0
     priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]

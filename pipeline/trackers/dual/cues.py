@@ -184,7 +184,8 @@ def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: Pipeline
     lost target may be anywhere. ``background`` may be a function returning it (read only when needed)."""
     img = frames.infrared if frames.infrared is not None else frames.visible
     assert img is not None
-    found = detection.detect(img, cfg.detection, background() if callable(background) else background).regions
+    found = detection.detect(img, detection.infrared_only(cfg.detection),
+                             background() if callable(background) else background).regions
     area = max(size[0] * size[1], 1.0)
     near = [r for r in found if 0.25 <= r.box.area / area <= 4.0]
     near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
