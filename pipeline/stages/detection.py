@@ -258,6 +258,16 @@ def _hann_window(h: int, w: int) -> np.ndarray:
     return cv2.createHanningWindow((w, h), cv2.CV_32F)
 
 
+def robust_level(a: np.ndarray) -> tuple[float, float]:
+    """(median, 1.4826 x median absolute deviation) of ``a`` over a regular grid of about 4 000
+    of its values, whatever its size: a level and a deviation that targets and edges covering
+    part of the frame do not move."""
+    step = max(1, int(np.sqrt(a.size / 4096)))
+    sub = a[::step, ::step].ravel()
+    med = float(np.median(sub))
+    return med, 1.4826 * float(np.median(np.abs(sub - med)))
+
+
 def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float, float]:
     """The translation ``(dx, dy)`` (px) that carries ``ref`` onto ``img``, ``|dx|, |dy| <= max_px``.
 
@@ -347,11 +357,8 @@ def foreground(grey: np.ndarray, bg: Background, cfg: DetectionConfig) -> np.nda
     ``jitter_px`` (a shaking edge is not foreground)."""
     g = grey.astype(np.float32)
     diff = g - bg.estimate
-    step = max(1, int(np.sqrt(diff.size / 4096)))
-    sub = diff[::step, ::step].ravel()
-    med = float(np.median(sub))
-    mad = 1.4826 * float(np.median(np.abs(sub - med)))
-    thr = max(cfg.foreground_min_contrast, med + cfg.foreground_k * mad)
+    med, sigma = robust_level(diff)
+    thr = max(cfg.foreground_min_contrast, med + cfg.foreground_k * sigma)
     ref = bg.estimate
     if cfg.jitter_px > 0:
         k = 2 * cfg.jitter_px + 1
@@ -390,9 +397,8 @@ def visible_foreground(lab: np.ndarray, bg: np.ndarray, cfg: DetectionConfig) ->
     dc = np.sqrt((lab[..., 1] - bg[..., 1]) ** 2 + (lab[..., 2] - bg[..., 2]) ** 2)
 
     def thr(d: np.ndarray) -> float:
-        sub = d[::step, ::step].ravel()
-        med = float(np.median(sub))
-        return max(cfg.foreground_min_contrast, med + cfg.foreground_k * 1.4826 * float(np.median(np.abs(sub - med))))
+        med, sigma = robust_level(d)
+        return max(cfg.foreground_min_contrast, med + cfg.foreground_k * sigma)
 
     return ((dc > thr(dc)) | (dL > thr(np.abs(dL)))).astype(np.uint8)
 
@@ -407,10 +413,8 @@ def visible_supported(vfg: np.ndarray, grey: np.ndarray, background: np.ndarray,
     The accepted ones carry the reason ``visible``."""
 
     diff = cv2.GaussianBlur(cv2.absdiff(grey.astype(np.float32), background.astype(np.float32)), (5, 5), 0)
-    step = max(1, int(np.sqrt(diff.size / 4096)))
-    sub = diff[::step, ::step].ravel()
-    med = float(np.median(sub))
-    thr = med + cfg.visible_support_k * 1.4826 * float(np.median(np.abs(sub - med)))
+    med, sigma = robust_level(diff)
+    thr = med + cfg.visible_support_k * sigma
     _, contours = _clean_contours(vfg & (diff > thr).astype(np.uint8), cfg)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
 
@@ -453,11 +457,8 @@ def stdm(frame: np.ndarray, window_px: int) -> np.ndarray:
 def segment(std_map: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
     """Foreground where the STDM exceeds the threshold (``cfg.threshold``) and ``min_std`` (uint8 0/1)."""
     if cfg.threshold == "global":
-        step = max(1, int(np.sqrt(std_map.size / 4096)))  # about 4-5 thousand samples at any frame size
-        sub = std_map[::step, ::step].ravel()
-        med = float(np.median(sub))
-        mad = 1.4826 * float(np.median(np.abs(sub - med)))
-        return ((std_map > med + cfg.k_sigma * mad) & (std_map > cfg.min_std)).astype(np.uint8)
+        med, sigma = robust_level(std_map)
+        return ((std_map > med + cfg.k_sigma * sigma) & (std_map > cfg.min_std)).astype(np.uint8)
     k = (cfg.threshold_window_px, cfg.threshold_window_px)
     m = cv2.boxFilter(std_map, cv2.CV_64F, k, normalize=True, borderType=cv2.BORDER_REFLECT)
     m2 = cv2.sqrBoxFilter(std_map, cv2.CV_64F, k, normalize=True, borderType=cv2.BORDER_REFLECT)
