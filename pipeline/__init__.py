@@ -4,10 +4,12 @@ The Python API:
 
 * :class:`DualTracker` (and :class:`Tracker` for any engine by name) to drive from your own loop:
   ``start(frames, boxes)``, then ``step(frames)``;
-* :func:`track` a sequence folder in memory, :func:`run_track` it into a run folder (CSV, .rrd, plots);
+* :func:`track` a sequence folder in memory, :func:`run_track` it into a run folder (CSV, .rrd,
+  plots);
 * :func:`open_sequence` to read a folder of any supported layout, :func:`evaluate` a results file
   against its truth, :func:`synthesize` a scene with exact ground truth;
-* :class:`PipelineConfig` (every stage's parameters) and :func:`load_config` (TOML and ``--set`` items).
+* :class:`PipelineConfig` (every stage's parameters) and :func:`load_config` (TOML and ``--set``
+  items).
 
 Examples
 --------
@@ -24,14 +26,39 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 # the modules below read __version__
-from pipeline.api import DetectTracker, DualTracker, KalmanCamShiftTracker, MeanShiftTracker, Tracker  # noqa: E402
-from pipeline.config import PipelineConfig, load_config  # noqa: E402
-from pipeline.eval import evaluate_files as evaluate  # noqa: E402
-from pipeline.io.sequence import FramePair, open_sequence  # noqa: E402
-from pipeline.run import RunOptions, run_track, track  # noqa: E402
-from pipeline.synthetic import synthesize, synthesize_random  # noqa: E402
-from pipeline.types import BBox, FrameResult, TargetResult, TargetStatus  # noqa: E402
+from pipeline.api import (
+    DetectTracker,
+    DualTracker,
+    KalmanCamShiftTracker,
+    MeanShiftTracker,
+    Tracker,
+)
+from pipeline.config import PipelineConfig, load_config
+from pipeline.eval import evaluate_files as evaluate
+from pipeline.io.sequence import FramePair, open_sequence
+from pipeline.run import RunOptions, run_track, track
+from pipeline.synthetic import synthesize, synthesize_random
+from pipeline.types import BBox, FrameResult, TargetResult, TargetStatus
 
-__all__ = ["BBox", "DetectTracker", "DualTracker", "FramePair", "FrameResult", "KalmanCamShiftTracker",
-           "MeanShiftTracker", "PipelineConfig", "RunOptions", "TargetResult", "TargetStatus", "Tracker", "__version__",
-           "evaluate", "load_config", "open_sequence", "run_track", "synthesize", "synthesize_random", "track"]
+__all__ = [
+    "BBox",
+    "DetectTracker",
+    "DualTracker",
+    "FramePair",
+    "FrameResult",
+    "KalmanCamShiftTracker",
+    "MeanShiftTracker",
+    "PipelineConfig",
+    "RunOptions",
+    "TargetResult",
+    "TargetStatus",
+    "Tracker",
+    "__version__",
+    "evaluate",
+    "load_config",
+    "open_sequence",
+    "run_track",
+    "synthesize",
+    "synthesize_random",
+    "track",
+]

@@ -1,4 +1,5 @@
-"""Trackers to drive from your own loop: ``start`` on the first frames with the boxes, ``step`` on every later one.
+"""Trackers to drive from your own loop: ``start`` on the first frames with the boxes, ``step`` on
+every later one.
 
 Every engine of ``dualtrack trackers`` is available as :class:`Tracker` (by name); the
 project's own trackers also have a class of their own: :class:`DualTracker`,
@@ -28,15 +29,25 @@ def _frame_pair(frames: Frames, index: int) -> FramePair:
     try:
         visible, infrared = frames
     except (TypeError, ValueError):
-        raise InputError("frames must be a FramePair or a (visible, infrared) pair of arrays") from None
+        raise InputError(
+            "frames must be a FramePair or a (visible, infrared) pair of arrays"
+        ) from None
     if visible is None and infrared is None:
         raise InputError("frames: at least one of visible and infrared must be given")
-    if visible is not None and (visible.ndim != 3 or visible.shape[2] != 3 or visible.dtype != np.uint8):
-        raise InputError(f"the visible frame must be (H, W, 3) uint8 BGR; got {visible.shape} {visible.dtype}")
+    if visible is not None and (
+        visible.ndim != 3 or visible.shape[2] != 3 or visible.dtype != np.uint8
+    ):
+        raise InputError(
+            f"the visible frame must be (H, W, 3) uint8 BGR; got {visible.shape} {visible.dtype}"
+        )
     if infrared is not None and (infrared.ndim != 2 or infrared.dtype != np.uint8):
-        raise InputError(f"the infrared frame must be (H, W) uint8; got {infrared.shape} {infrared.dtype}")
+        raise InputError(
+            f"the infrared frame must be (H, W) uint8; got {infrared.shape} {infrared.dtype}"
+        )
     if visible is not None and infrared is not None and visible.shape[:2] != infrared.shape:
-        raise InputError(f"visible {visible.shape[:2]} and infrared {infrared.shape} frames differ in size")
+        raise InputError(
+            f"visible {visible.shape[:2]} and infrared {infrared.shape} frames differ in size"
+        )
     return FramePair(index, visible, infrared)
 
 
@@ -81,13 +92,18 @@ class Tracker:
         self._engine = make_tracker(self.name, self.config)
         self._index = 0
 
-    def start(self, frames: Frames, boxes: Iterable[BBox | tuple[float, float, float, float]] = ()) -> FrameResult:
-        """Start on the first frames with the targets' boxes (ids 1..N); returns their result for this frame."""
+    def start(
+        self, frames: Frames, boxes: Iterable[BBox | tuple[float, float, float, float]] = ()
+    ) -> FrameResult:
+        """Start on the first frames with the targets' boxes (ids 1..N); returns their result for
+        this frame."""
         targets: list[InitTarget] = []
         for i, b in enumerate(boxes, start=1):
             box = b if isinstance(b, BBox) else BBox(*map(float, b))
             if not (box.w > 0 and box.h > 0):
-                raise InputError(f"box {i} must have a positive width and height; got {box.as_tuple()}")
+                raise InputError(
+                    f"box {i} must have a positive width and height; got {box.as_tuple()}"
+                )
             targets.append(InitTarget(i, box))
         self._index = 1
         return self._engine.start(_frame_pair(frames, 1), targets)
@@ -99,8 +115,11 @@ class Tracker:
         self._index += 1
         return self._engine.step(_frame_pair(frames, self._index))
 
-    def track(self, frames: Sequence[Frames], boxes: Iterable[BBox | tuple[float, float, float, float]] = ()
-              ) -> list[FrameResult]:
+    def track(
+        self,
+        frames: Sequence[Frames],
+        boxes: Iterable[BBox | tuple[float, float, float, float]] = (),
+    ) -> list[FrameResult]:
         """``start`` on ``frames[0]`` and ``step`` through the rest: one result per frame."""
         if not frames:
             raise InputError("no frames to track")
@@ -110,7 +129,8 @@ class Tracker:
 
 
 class DualTracker(Tracker):
-    """The dual-channel tracker (``dual``): colour mean shift, IR contour, correlation filter (see :class:`Tracker`)."""
+    """The dual-channel tracker (``dual``): colour mean shift, IR contour, correlation filter (see
+    :class:`Tracker`)."""
 
     default_name = "dual"
 
@@ -128,9 +148,17 @@ class KalmanCamShiftTracker(Tracker):
 
 
 class DetectTracker(Tracker):
-    """Targets found by the detector and associated globally (``detect``); ``start`` takes no boxes."""
+    """Targets found by the detector and associated globally (``detect``); ``start`` takes no
+    boxes."""
 
     default_name = "detect"
 
 
-__all__ = ["DetectTracker", "DualTracker", "Frames", "KalmanCamShiftTracker", "MeanShiftTracker", "Tracker"]
+__all__ = [
+    "DetectTracker",
+    "DualTracker",
+    "Frames",
+    "KalmanCamShiftTracker",
+    "MeanShiftTracker",
+    "Tracker",
+]

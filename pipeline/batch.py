@@ -42,8 +42,12 @@ from pipeline.io.sequence import sequence_layout
 from pipeline.trackers import DEFAULT_TRACKER, tracker_names
 
 RUN_FILES = ("tracks.csv", "targets.csv", "summary.json", "run.rrd")
-SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-                     "NUMBA_NUM_THREADS": "1"}
+SINGLE_THREAD_ENV = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMBA_NUM_THREADS": "1",
+}
 
 
 @dataclass(frozen=True)
@@ -96,10 +100,13 @@ class TaskResult:
 
 
 def discover(root: Path, exclude: Path | None = None) -> list[tuple[str, Path]]:
-    """``(name, folder)`` of every sequence under ``root`` (``root`` itself if it is one), sorted."""
+    """``(name, folder)`` of every sequence under ``root`` (``root`` itself if it is one),
+    sorted."""
     root = Path(root)
     if not root.is_dir():
-        raise InputError(f"archive root not found: {root}" if not root.exists() else f"not a folder: {root}")
+        raise InputError(
+            f"archive root not found: {root}" if not root.exists() else f"not a folder: {root}"
+        )
     ex = exclude.resolve() if exclude is not None else None
     found: list[tuple[str, Path]] = []
 
@@ -132,7 +139,11 @@ def run_is_complete(run_dir: Path, tracker: str) -> dict[str, object] | None:
         s = json.loads(f.read_text())
     except (ValueError, OSError):
         return None
-    return s if isinstance(s, dict) and s.get("complete") is True and s.get("tracker") == tracker else None
+    return (
+        s
+        if isinstance(s, dict) and s.get("complete") is True and s.get("tracker") == tracker
+        else None
+    )
 
 
 def plan(root: Path, out: Path, opts: BatchOptions) -> list[Task]:
@@ -145,7 +156,9 @@ def plan(root: Path, out: Path, opts: BatchOptions) -> list[Task]:
         raise InputError(f"--trackers names a tracker twice: {','.join(opts.trackers)}")
     seqs = discover(root, exclude=out)
     if not seqs:
-        raise InputError(f"no sequence folders under {root} (looked for any layout dualtrack reads)")
+        raise InputError(
+            f"no sequence folders under {root} (looked for any layout dualtrack reads)"
+        )
     several = len(opts.trackers) > 1
     tasks = []
     for name, d in seqs:
@@ -157,8 +170,20 @@ def plan(root: Path, out: Path, opts: BatchOptions) -> list[Task]:
 
 def track_command(seq_dir: Path, tracker: str, run_dir: Path, opts: BatchOptions) -> list[str]:
     """The ``dualtrack track`` command line of one task."""
-    cmd = [sys.executable, "-m", "pipeline", "track", str(seq_dir), "--tracker", tracker, "--out", str(run_dir),
-           "--force", "--protocol", opts.protocol]
+    cmd = [
+        sys.executable,
+        "-m",
+        "pipeline",
+        "track",
+        str(seq_dir),
+        "--tracker",
+        tracker,
+        "--out",
+        str(run_dir),
+        "--force",
+        "--protocol",
+        opts.protocol,
+    ]
     if opts.config_path is not None:
         cmd += ["--config", str(opts.config_path)]
     for s in opts.sets:
@@ -174,9 +199,9 @@ def _last_error_line(stderr: str) -> str:
     lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
     for ln in reversed(lines):
         if ln.startswith("dualtrack: error:"):
-            return ln[len("dualtrack: error:"):].strip()
+            return ln[len("dualtrack: error:") :].strip()
         if ln.startswith("dualtrack: internal error:"):
-            return ln[len("dualtrack: "):].strip()
+            return ln[len("dualtrack: ") :].strip()
     return lines[-1] if lines else ""
 
 
@@ -184,16 +209,31 @@ STOP_GRACE_S = 15.0
 """Seconds a stopped child gets to close its outputs after SIGTERM before it is killed."""
 
 
-def run_process(cmd: list[str], timeout_s: float | None, procs: set[subprocess.Popen] | None = None,
-                lock: threading.Lock | None = None) -> tuple[int, str]:
+def run_process(
+    cmd: list[str],
+    timeout_s: float | None,
+    procs: set[subprocess.Popen] | None = None,
+    lock: threading.Lock | None = None,
+) -> tuple[int, str]:
     """Run ``cmd`` single-threaded; ``(return code, error line)``. Tracks the process in ``procs``.
 
     The child dies with this process (``DUALTRACK_DIE_WITH_PARENT``: it asks the kernel for a
     SIGTERM when its parent goes, ``pipeline.cli``); a timeout stops it with SIGTERM first, so its
     outputs are closed, and kills it only if it has not ended ``STOP_GRACE_S`` later."""
-    env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1", "DUALTRACK_DIE_WITH_PARENT": str(os.getpid())}
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                         start_new_session=True)
+    env = {
+        **os.environ,
+        **SINGLE_THREAD_ENV,
+        "PYTHONUNBUFFERED": "1",
+        "DUALTRACK_DIE_WITH_PARENT": str(os.getpid()),
+    }
+    p = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
     if procs is not None and lock is not None:
         with lock:
             procs.add(p)
@@ -203,7 +243,10 @@ def run_process(cmd: list[str], timeout_s: float | None, procs: set[subprocess.P
         except subprocess.TimeoutExpired:
             stop_process(p)
             p.communicate()
-            return -1, f"timed out after {timeout_s:g} s (stopped; its outputs hold the frames done)"
+            return (
+                -1,
+                f"timed out after {timeout_s:g} s (stopped; its outputs hold the frames done)",
+            )
     finally:
         if procs is not None and lock is not None:
             with lock:
@@ -229,7 +272,8 @@ def _signal(p: subprocess.Popen, sig: int) -> None:
 
 
 def stop_process(p: subprocess.Popen, grace_s: float = STOP_GRACE_S) -> None:
-    """SIGTERM (the child's run loop closes its outputs and writes summary.json), SIGKILL if it lingers."""
+    """SIGTERM (the child's run loop closes its outputs and writes summary.json), SIGKILL if it
+    lingers."""
     _signal(p, signal.SIGTERM)
     try:
         p.wait(timeout=grace_s)
@@ -247,17 +291,25 @@ def _load_summary(run_dir: Path) -> dict[str, object]:
         return {}
 
 
-def _local_task(task: Task, opts: BatchOptions, procs: set[subprocess.Popen], lock: threading.Lock) -> TaskResult:
+def _local_task(
+    task: Task, opts: BatchOptions, procs: set[subprocess.Popen], lock: threading.Lock
+) -> TaskResult:
     t0 = time.perf_counter()
-    rc, err = run_process(track_command(task.seq_dir, task.tracker, task.run_dir, opts), opts.timeout_s, procs, lock)
+    rc, err = run_process(
+        track_command(task.seq_dir, task.tracker, task.run_dir, opts), opts.timeout_s, procs, lock
+    )
     dt = time.perf_counter() - t0
     summary = _load_summary(task.run_dir)
     if rc == 0 and summary.get("complete") is True:
         return TaskResult(task, "done", None, dt, summary)
-    return TaskResult(task, "failed", err or f"dualtrack track exited with status {rc}", dt, summary)
+    return TaskResult(
+        task, "failed", err or f"dualtrack track exited with status {rc}", dt, summary
+    )
 
 
-def run_local(tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskResult], None]) -> None:
+def run_local(
+    tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskResult], None]
+) -> None:
     """Run ``tasks`` on this machine, ``opts.workers`` at a time (default: one per core)."""
     workers = opts.workers or os.cpu_count() or 1
     procs: set[subprocess.Popen] = set()
@@ -277,7 +329,9 @@ def run_local(tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskRe
     except BaseException:
         with lock:
             running = list(procs)
-        for p in running:  # Ctrl-C / SIGTERM: stop the running sequences; they close their outputs (incomplete)
+        for p in (
+            running
+        ):  # Ctrl-C / SIGTERM: stop the running sequences; they close their outputs (incomplete)
             _signal(p, signal.SIGTERM)
         deadline = time.monotonic() + STOP_GRACE_S
         for p in running:
@@ -302,7 +356,11 @@ def _take(it: Iterator[Task], n: int) -> list[Task]:
 
 def _sequence_files(seq_dir: Path) -> dict[str, bytes]:
     """Every file of a sequence folder, by relative path (for ``ship_frames``)."""
-    return {p.relative_to(seq_dir).as_posix(): p.read_bytes() for p in sorted(seq_dir.rglob("*")) if p.is_file()}
+    return {
+        p.relative_to(seq_dir).as_posix(): p.read_bytes()
+        for p in sorted(seq_dir.rglob("*"))
+        if p.is_file()
+    }
 
 
 def remote_task(payload: dict[str, object]) -> dict[str, object]:
@@ -324,36 +382,58 @@ def remote_task(payload: dict[str, object]) -> dict[str, object]:
             seq_dir = Path(str(payload["seq_dir"]))
         run_dir = tmpd / "run"
         t0 = time.perf_counter()
-        rc, err = run_process(track_command(seq_dir, str(payload["tracker"]), run_dir, opts), opts.timeout_s)
-        files = {p.relative_to(run_dir).as_posix(): p.read_bytes() for p in sorted(run_dir.rglob("*")) if p.is_file()} \
-            if run_dir.is_dir() else {}
+        rc, err = run_process(
+            track_command(seq_dir, str(payload["tracker"]), run_dir, opts), opts.timeout_s
+        )
+        files = (
+            {
+                p.relative_to(run_dir).as_posix(): p.read_bytes()
+                for p in sorted(run_dir.rglob("*"))
+                if p.is_file()
+            }
+            if run_dir.is_dir()
+            else {}
+        )
         return {"rc": rc, "error": err, "seconds": time.perf_counter() - t0, "files": files}
 
 
-def run_dask(tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskResult], None]) -> None:
-    """Submit ``tasks`` to the Dask scheduler at ``opts.scheduler``; write results back under DIR."""
+def run_dask(
+    tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskResult], None]
+) -> None:
+    """Submit ``tasks`` to the Dask scheduler at ``opts.scheduler``; write results back under
+    DIR."""
     import dataclasses
 
     try:
         from dask.distributed import Client, as_completed
     except ImportError:
-        raise InputError("--scheduler needs dask.distributed: pip install -e '.[cluster]'") from None
+        raise InputError(
+            "--scheduler needs dask.distributed: pip install -e '.[cluster]'"
+        ) from None
     from pipeline.sinks.batch_files import write_run_files
 
     try:
         client = Client(opts.scheduler, timeout="20s")
     except (OSError, TimeoutError) as e:
         raise InputError(f"cannot reach the Dask scheduler at {opts.scheduler}: {e}") from None
-    odict = {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(opts).items()}
+    odict = {
+        k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(opts).items()
+    }
     odict["progress"] = False
     try:
         futures = {}
         for task in tasks:
-            payload: dict[str, object] = {"name": task.sequence, "tracker": task.tracker, "opts": odict,
-                                          "seq_dir": str(task.seq_dir.resolve())}
+            payload: dict[str, object] = {
+                "name": task.sequence,
+                "tracker": task.tracker,
+                "opts": odict,
+                "seq_dir": str(task.seq_dir.resolve()),
+            }
             if opts.ship_frames:
                 payload["files"] = _sequence_files(task.seq_dir)
-            fut = client.submit(remote_task, payload, pure=False, key=f"dualtrack-{task.key}-{time.time_ns()}")
+            fut = client.submit(
+                remote_task, payload, pure=False, key=f"dualtrack-{task.key}-{time.time_ns()}"
+            )
             futures[fut] = task
         for fut in as_completed(list(futures)):
             task = futures[fut]
@@ -366,9 +446,17 @@ def run_dask(tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskRes
                 write_run_files(task.run_dir, r["files"])  # type: ignore[arg-type]
             summary = _load_summary(task.run_dir) if r["files"] else {}
             ok = r["rc"] == 0 and summary.get("complete") is True
-            on_result(TaskResult(task, "done" if ok else "failed",
-                                 None if ok else (r["error"] or f"dualtrack track exited with status {r['rc']}"),
-                                 float(r["seconds"]), summary))  # type: ignore[arg-type]
+            on_result(
+                TaskResult(
+                    task,
+                    "done" if ok else "failed",
+                    None
+                    if ok
+                    else (r["error"] or f"dualtrack track exited with status {r['rc']}"),
+                    float(r["seconds"]),
+                    summary,
+                )
+            )  # type: ignore[arg-type]
     finally:
         for fut in futures:
             fut.cancel()
@@ -377,7 +465,8 @@ def run_dask(tasks: list[Task], opts: BatchOptions, on_result: Callable[[TaskRes
 
 @contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM stops a batch as Ctrl-C does (children stopped, report written); outside the main thread, nothing."""
+    """SIGTERM stops a batch as Ctrl-C does (children stopped, report written); outside the main
+    thread, nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -404,24 +493,29 @@ class BatchResult:
 
 def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
     """Plan, run (locally or on Dask), report. See the module doc."""
+    from pipeline.eval.protocols import PROTOCOLS
     from pipeline.progress import Progress
     from pipeline.sinks.report import write_progress_report, write_report
 
-    from pipeline.eval.protocols import PROTOCOLS
-
     if opts.protocol not in PROTOCOLS:
-        raise InputError(f"--protocol must be one of {', '.join(PROTOCOLS)}; got {opts.protocol!r}")
+        raise InputError(
+            f"--protocol must be one of {', '.join(PROTOCOLS)}; got {opts.protocol!r}"
+        )
     from pipeline.sinks.export import EXPORT_FORMATS
 
     if opts.export is not None and opts.export not in EXPORT_FORMATS:
-        raise InputError(f"--export must be one of {', '.join(EXPORT_FORMATS)}; got {opts.export!r}")
+        raise InputError(
+            f"--export must be one of {', '.join(EXPORT_FORMATS)}; got {opts.export!r}"
+        )
     if opts.workers is not None and opts.workers < 1:
         raise InputError(f"--workers must be at least 1; got {opts.workers}")
     if opts.timeout_s is not None and not opts.timeout_s > 0:
         raise InputError(f"--timeout must be a positive number of seconds; got {opts.timeout_s:g}")
     from pipeline.config import load_config
 
-    load_config(opts.config_path, list(opts.sets))  # a bad --set or config file stops the batch before it starts
+    load_config(
+        opts.config_path, list(opts.sets)
+    )  # a bad --set or config file stops the batch before it starts
     root, out = Path(root), Path(out)
     tasks = plan(root, out, opts)
     from pipeline.runloop import prepare_out_dir
@@ -450,8 +544,13 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
             frames += int(r.summary.get("frames", 0) or 0)  # type: ignore[call-overload]
             rate = frames / max(time.perf_counter() - t0, 1e-9)
             bar.update(1, done=counts["done"], failed=counts["failed"], frames_per_s=f"{rate:.1f}")
-            write_progress_report(out, [results[t.key] for t in tasks if t.key in results], opts, len(tasks),
-                                  time.perf_counter() - t0)
+            write_progress_report(
+                out,
+                [results[t.key] for t in tasks if t.key in results],
+                opts,
+                len(tasks),
+                time.perf_counter() - t0,
+            )
 
         try:
             with _sigterm_as_interrupt():

@@ -1,4 +1,5 @@
-"""``dualtrack bench``: accuracy and speed of trackers on the same sequences, in one run, on one core.
+"""``dualtrack bench``: accuracy and speed of trackers on the same sequences, in one run, on one
+core.
 
 For every sequence the frames are first decoded once to warm the file cache, then the
 decode-only rate is measured (read + decode every frame pair, nothing else). Each
@@ -14,9 +15,9 @@ meant to be read as ratios measured in the same run (against the decode-only rat
 against the peers), never as absolute promises. With several targets the table also
 has identity purity, ID switches, MOTA and IDF1.
 
-``repeat`` (``--repeat N``) times every measurement N times and keeps the fastest, as
-``timeit`` does: on a shared or virtual machine other work only ever adds time. Accuracy comes from the
-last run (the run folder kept); the trackers are deterministic apart from MIL.
+``repeat`` (``--repeat N``) times every measurement N times and keeps the fastest, as ``timeit``
+does: on a shared or virtual machine other work only ever adds time. Accuracy comes from the last
+run (the run folder kept); the trackers are deterministic apart from MIL.
 
 ``run_scaling`` (``dualtrack bench --targets 1,2,4,8``) measures how the cost grows with
 the number of targets: it renders the ``walkers<n>`` scenes (n people, each in its own
@@ -41,7 +42,8 @@ DEFAULT_BENCH_TRACKERS = ("meanshift", "camshift", "mil")
 
 
 def decode_rate(seq_path: Path, repeat: int = 1, **open_kw: object) -> tuple[float, int]:
-    """Frame pairs per second of reading + decoding the whole sequence: the fastest of ``repeat`` warm passes."""
+    """Frame pairs per second of reading + decoding the whole sequence: the fastest of ``repeat``
+    warm passes."""
     seq = open_sequence(seq_path, **open_kw)  # type: ignore[arg-type]
     for _ in seq.frames():  # warm the cache
         pass
@@ -65,8 +67,8 @@ def run_bench(
     repeat: int = 1,
     **open_kw: object,
 ) -> list[dict[str, object]]:
-    """Run every tracker on every sequence (``repeat`` times, keeping the fastest rates); one row per
-    (sequence, tracker)."""
+    """Run every tracker on every sequence (``repeat`` times, keeping the fastest rates); one row
+    per (sequence, tracker)."""
     if not (isinstance(repeat, int) and repeat >= 1):
         raise InputError(f"--repeat must be an integer >= 1; got {repeat!r}")
     cv2.setNumThreads(1)
@@ -90,8 +92,13 @@ def run_bench(
                 rows.append({"sequence": seq_name, "tracker": "-", "failed": str(exc)})
                 continue
             for name in names:
-                row: dict[str, object] = {"sequence": seq_name, "tracker": name, "frames": n_frames,
-                                          "fps_decode": round(dec_fps, 1), "repeat": repeat}
+                row: dict[str, object] = {
+                    "sequence": seq_name,
+                    "tracker": name,
+                    "frames": n_frames,
+                    "fps_decode": round(dec_fps, 1),
+                    "repeat": repeat,
+                }
                 if name not in runnable:
                     row["skipped"] = "needs opencv-contrib (not installed here)"
                     rows.append(row)
@@ -99,19 +106,32 @@ def run_bench(
                 fps_trk: list[float] = []
                 fps_cpu: list[float] = []
                 fps_e2e: list[float] = []
-                fastest: dict[str, object] | None = None  # the summary of the run with the best fps_tracking
+                fastest: dict[str, object] | None = (
+                    None  # the summary of the run with the best fps_tracking
+                )
                 for _ in range(repeat):
-                    res = run_track(sd, RunOptions(
-                        tracker=name, out_dir=out / name / seq_name, force=True, plots=False, progress=None,
-                        sets=list(sets or []), config_path=config_path, **open_kw,  # type: ignore[arg-type]
-                    ))
+                    res = run_track(
+                        sd,
+                        RunOptions(
+                            tracker=name,
+                            out_dir=out / name / seq_name,
+                            force=True,
+                            plots=False,
+                            progress=None,
+                            sets=list(sets or []),
+                            config_path=config_path,
+                            **open_kw,  # type: ignore[arg-type]
+                        ),
+                    )
                     s = res.summary
                     if res.error or res.interrupted:
                         break
                     fps_trk += [float(s["fps_tracking"])] if s.get("fps_tracking") else []
                     fps_cpu += [float(s["fps_tracking_cpu"])] if s.get("fps_tracking_cpu") else []
                     fps_e2e += [float(s["fps_end_to_end"])] if s.get("fps_end_to_end") else []
-                    if fastest is None or float(s.get("fps_tracking") or 0) > float(fastest.get("fps_tracking") or 0):
+                    if fastest is None or float(s.get("fps_tracking") or 0) > float(
+                        fastest.get("fps_tracking") or 0
+                    ):
                         fastest = s
                 if res.error or res.interrupted:
                     row["failed"] = res.error or "interrupted"
@@ -120,23 +140,31 @@ def run_bench(
                         raise KeyboardInterrupt
                     continue
                 m = s.get("metrics") or {}
-                row.update({
-                    "p20": m.get("p20") if isinstance(m, dict) else None,
-                    "auc": m.get("auc") if isinstance(m, dict) else None,
-                    **_multi_metrics(m),
-                    "fps_tracking": max(fps_trk) if fps_trk else None,
-                    "fps_tracking_cpu": max(fps_cpu) if fps_cpu else None,
-                    "fps_end_to_end": max(fps_e2e) if fps_e2e else None,
-                    "fps_tracking_runs": fps_trk,
-                    "stage_seconds": (fastest or s).get("stage_seconds"),
-                    "complete": s.get("complete"),
-                })
-                fe = row["fps_end_to_end"]  # the kept (fastest) end-to-end rate, as printed beside it
-                row["end_to_end_vs_decode"] = round(float(fe) / dec_fps, 3) if fe and dec_fps else None  # type: ignore[arg-type]
+                row.update(
+                    {
+                        "p20": m.get("p20") if isinstance(m, dict) else None,
+                        "auc": m.get("auc") if isinstance(m, dict) else None,
+                        **_multi_metrics(m),
+                        "fps_tracking": max(fps_trk) if fps_trk else None,
+                        "fps_tracking_cpu": max(fps_cpu) if fps_cpu else None,
+                        "fps_end_to_end": max(fps_e2e) if fps_e2e else None,
+                        "fps_tracking_runs": fps_trk,
+                        "stage_seconds": (fastest or s).get("stage_seconds"),
+                        "complete": s.get("complete"),
+                    }
+                )
+                fe = row[
+                    "fps_end_to_end"
+                ]  # the kept (fastest) end-to-end rate, as printed beside it
+                row["end_to_end_vs_decode"] = (
+                    round(float(fe) / dec_fps, 3) if fe and dec_fps else None
+                )  # type: ignore[arg-type]
                 ft = row["fps_tracking"]
-                bound = min(float(ft), dec_fps) if ft and dec_fps else None  # type: ignore[arg-type]
-                # the overlap of decoding, tracking and writing: 1.0 when end to end runs at the slower of the two
-                row["end_to_end_vs_bound"] = round(float(fe) / bound, 3) if fe and bound else None  # type: ignore[arg-type]
+                # type: ignore[arg-type]
+                bound = min(float(ft), dec_fps) if ft and dec_fps else None
+                # the overlap of decoding, tracking and writing: 1.0 when end to end runs at the
+                # slower of the two type: ignore[arg-type]
+                row["end_to_end_vs_bound"] = round(float(fe) / bound, 3) if fe and bound else None
                 rows.append(row)
         _add_peer_ratios(rows)
         if json_path is not None:
@@ -152,19 +180,33 @@ def _multi_metrics(m: object) -> dict[str, object]:
     if not isinstance(m, dict) or "purity" not in m:
         return {}
     pur = m["purity"]
-    return {"purity": pur.get("overall") if isinstance(pur, dict) else None, "id_switches": m.get("id_switches"),
-            "mota": m.get("mota"), "idf1": m.get("idf1")}
+    return {
+        "purity": pur.get("overall") if isinstance(pur, dict) else None,
+        "id_switches": m.get("id_switches"),
+        "mota": m.get("mota"),
+        "idf1": m.get("idf1"),
+    }
 
 
-def run_scaling(counts: list[int], trackers: list[str] | None = None, out: Path | None = None, seed: int = 0,
-                sets: list[str] | None = None, config_path: Path | None = None, repeat: int = 1) -> list[dict[str, object]]:
-    """fps of each tracker on the ``walkers<n>`` scene for every n in ``counts`` (fastest of ``repeat`` runs)."""
+def run_scaling(
+    counts: list[int],
+    trackers: list[str] | None = None,
+    out: Path | None = None,
+    seed: int = 0,
+    sets: list[str] | None = None,
+    config_path: Path | None = None,
+    repeat: int = 1,
+) -> list[dict[str, object]]:
+    """fps of each tracker on the ``walkers<n>`` scene for every n in ``counts`` (fastest of
+    ``repeat`` runs)."""
     from pipeline.synthetic import SCENARIOS, synthesize
 
     for n in counts:
         if f"walkers{n}" not in SCENARIOS:
             have = sorted(int(k[7:]) for k in SCENARIOS if k.startswith("walkers"))
-            raise InputError(f"no scene with {n} targets; --targets takes some of {','.join(map(str, have))}")
+            raise InputError(
+                f"no scene with {n} targets; --targets takes some of {','.join(map(str, have))}"
+            )
     tmp = None
     if out is None:
         tmp = tempfile.TemporaryDirectory(prefix="dualtrack-scaling-")
@@ -176,7 +218,14 @@ def run_scaling(counts: list[int], trackers: list[str] | None = None, out: Path 
             if not (d / "scene.json").exists():
                 synthesize(f"walkers{n}", d, seed=seed, progress=False)
             dirs.append(d)
-        rows = run_bench(dirs, trackers or ["dual"], out=out / "runs", sets=sets, config_path=config_path, repeat=repeat)
+        rows = run_bench(
+            dirs,
+            trackers or ["dual"],
+            out=out / "runs",
+            sets=sets,
+            config_path=config_path,
+            repeat=repeat,
+        )
     finally:
         if tmp is not None:
             tmp.cleanup()
@@ -186,33 +235,47 @@ def run_scaling(counts: list[int], trackers: list[str] | None = None, out: Path 
         fps = r.get("fps_tracking")
         if isinstance(fps, int | float) and fps > 0:
             r["ms_per_target"] = round(1000.0 / (fps * n), 3)
-            base.setdefault(str(r["tracker"]), float(r["ms_per_target"]) if n == counts[0] else float("nan"))
+            base.setdefault(
+                str(r["tracker"]), float(r["ms_per_target"]) if n == counts[0] else float("nan")
+            )
             b = base[str(r["tracker"])]
-            r["per_target_cost_vs_first"] = round(float(r["ms_per_target"]) / b, 2) if b == b else None
+            r["per_target_cost_vs_first"] = (
+                round(float(r["ms_per_target"]) / b, 2) if b == b else None
+            )
     return rows
 
 
 def format_scaling(rows: list[dict[str, object]]) -> str:
     """The fps-vs-targets table."""
-    lines = ["| tracker | targets | fps_tracking | ms per target | per-target cost vs fewest | P@20 | purity | ID sw. |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| tracker | targets | fps_tracking | ms per target | per-target cost vs fewest | P@20 "
+        "| purity | ID sw. |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         if "skipped" in r:
-            lines.append(f"| {r['tracker']} | {r['targets']} | skipped: {r['skipped']} |  |  |  |  |  |")
+            lines.append(
+                f"| {r['tracker']} | {r['targets']} | skipped: {r['skipped']} |  |  |  |  |  |"
+            )
             continue
 
         def f(v: object, nd: int) -> str:
             return f"{v:.{nd}f}" if isinstance(v, float) else ("" if v is None else str(v))
 
-        lines.append(f"| {r['tracker']} | {r['targets']} | {f(r.get('fps_tracking'), 1)} | {f(r.get('ms_per_target'), 2)} | "
-                     f"{f(r.get('per_target_cost_vs_first'), 2)} | {f(r.get('p20'), 3)} | {f(r.get('purity'), 3)} | "
-                     f"{f(r.get('id_switches'), 0)} |")
+        lines.append(
+            f"| {r['tracker']} | {r['targets']} | {f(r.get('fps_tracking'), 1)} | "
+            f"{f(r.get('ms_per_target'), 2)} | "
+            f"{f(r.get('per_target_cost_vs_first'), 2)} | {f(r.get('p20'), 3)} | "
+            f"{f(r.get('purity'), 3)} | "
+            f"{f(r.get('id_switches'), 0)} |"
+        )
     return "\n".join(lines)
 
 
 def _add_peer_ratios(rows: list[dict[str, object]]) -> None:
-    """Speed of each of our trackers relative to each OpenCV peer on the same sequence: ``speed_vs_peers`` from the
-    tracking rates, ``speed_vs_peers_cpu`` from the rates in CPU time."""
+    """Speed of each of our trackers relative to each OpenCV peer on the same sequence:
+    ``speed_vs_peers`` from the tracking rates, ``speed_vs_peers_cpu`` from the rates in CPU time.
+    """
     by_seq: dict[str, dict[str, dict[str, object]]] = {}
     for r in rows:
         by_seq.setdefault(str(r["sequence"]), {})[str(r["tracker"])] = r
@@ -220,14 +283,18 @@ def _add_peer_ratios(rows: list[dict[str, object]]) -> None:
         for name, r in trk.items():
             if name in PEERS:
                 continue
-            for key, out in (("fps_tracking", "speed_vs_peers"), ("fps_tracking_cpu", "speed_vs_peers_cpu")):
+            for key, out in (
+                ("fps_tracking", "speed_vs_peers"),
+                ("fps_tracking_cpu", "speed_vs_peers_cpu"),
+            ):
                 if not r.get(key):
                     continue
                 ratios = {}
                 for peer in PEERS:
                     p = trk.get(peer)
                     if p and p.get(key):
-                        ratios[peer] = round(float(r[key]) / float(p[key]), 2)  # type: ignore[arg-type]
+                        # type: ignore[arg-type]
+                        ratios[peer] = round(float(r[key]) / float(p[key]), 2)
                 if ratios:
                     r[out] = ratios
 
@@ -235,8 +302,18 @@ def _add_peer_ratios(rows: list[dict[str, object]]) -> None:
 def format_table(rows: list[dict[str, object]]) -> str:
     """The bench table as aligned text (Markdown-compatible)."""
     multi = any("purity" in r for r in rows)
-    head = ["sequence", "tracker", "P@20", "AUC", "fps_tracking", "fps_tracking_cpu", "fps_end_to_end", "fps_decode",
-            "e2e/decode", "e2e/min(trk,dec)"]
+    head = [
+        "sequence",
+        "tracker",
+        "P@20",
+        "AUC",
+        "fps_tracking",
+        "fps_tracking_cpu",
+        "fps_end_to_end",
+        "fps_decode",
+        "e2e/decode",
+        "e2e/min(trk,dec)",
+    ]
     if multi:
         head += ["purity", "ID sw.", "MOTA", "IDF1"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -249,27 +326,53 @@ def format_table(rows: list[dict[str, object]]) -> str:
         if "failed" in r:
             continue
         if "skipped" in r:
-            lines.append(f"| {r['sequence']} | {r['tracker']} | skipped: {r['skipped']} |" + "  |" * (len(head) - 3))
+            lines.append(
+                f"| {r['sequence']} | {r['tracker']} | skipped: {r['skipped']} |"
+                + "  |" * (len(head) - 3)
+            )
             continue
         cells = [
-            str(r["sequence"]), str(r["tracker"]), f(r.get("p20")), f(r.get("auc")), f(r.get("fps_tracking"), 1),
-            f(r.get("fps_tracking_cpu"), 1), f(r.get("fps_end_to_end"), 1), f(r.get("fps_decode"), 1),
-            f(r.get("end_to_end_vs_decode"), 2), f(r.get("end_to_end_vs_bound"), 2),
+            str(r["sequence"]),
+            str(r["tracker"]),
+            f(r.get("p20")),
+            f(r.get("auc")),
+            f(r.get("fps_tracking"), 1),
+            f(r.get("fps_tracking_cpu"), 1),
+            f(r.get("fps_end_to_end"), 1),
+            f(r.get("fps_decode"), 1),
+            f(r.get("end_to_end_vs_decode"), 2),
+            f(r.get("end_to_end_vs_bound"), 2),
         ]
         if multi:
-            cells += [f(r.get("purity")), f(r.get("id_switches")), f(r.get("mota")), f(r.get("idf1"))]
+            cells += [
+                f(r.get("purity")),
+                f(r.get("id_switches")),
+                f(r.get("mota")),
+                f(r.get("idf1")),
+            ]
         lines.append("| " + " | ".join(cells) + " |")
     if failed:
-        lines += ["", f"{len(failed)} failed:"] + [f"- {r['sequence']}"
-                                                  + (f" / {r['tracker']}" if r["tracker"] != "-" else "")
-                                                  + f": {r['failed']}" for r in failed]
+        lines += ["", f"{len(failed)} failed:"] + [
+            f"- {r['sequence']}"
+            + (f" / {r['tracker']}" if r["tracker"] != "-" else "")
+            + f": {r['failed']}"
+            for r in failed
+        ]
     return "\n".join(lines)
 
 
-def random_scene_set(count: int | None = None, split: str = "test", seeds: range | None = None,
-                     targets: tuple[int, int] | None = None, out: Path | None = None, size: tuple[int, int] = (320, 240),
-                     frames: int = 200, progress: bool | None = None) -> list[Path]:
-    """Folders of random scenes (:mod:`pipeline.synthetic.family`), generated into ``out`` unless already there.
+def random_scene_set(
+    count: int | None = None,
+    split: str = "test",
+    seeds: range | None = None,
+    targets: tuple[int, int] | None = None,
+    out: Path | None = None,
+    size: tuple[int, int] = (320, 240),
+    frames: int = 200,
+    progress: bool | None = None,
+) -> list[Path]:
+    """Folders of random scenes (:mod:`pipeline.synthetic.family`), generated into ``out`` unless
+    already there.
 
     ``seeds`` names them outright; otherwise the first ``count`` seeds of the ``split``
     (``dev``: tuning, ``test``: only ever scored). A folder is reused when its
@@ -316,16 +419,26 @@ def random_scene_set(count: int | None = None, split: str = "test", seeds: range
     return dirs
 
 
-def run_random_bench(count: int | None = None, split: str = "test", seeds: range | None = None,
-                     targets: tuple[int, int] | None = None, trackers: list[str] | None = None, out: Path | None = None,
-                     json_path: Path | None = None, sets: list[str] | None = None, config_path: Path | None = None,
-                     repeat: int = 1, progress: bool | None = None) -> dict[str, object]:
-    """``dualtrack bench --random N``: every tracker on a set of random scenes, and the distribution of its scores.
+def run_random_bench(
+    count: int | None = None,
+    split: str = "test",
+    seeds: range | None = None,
+    targets: tuple[int, int] | None = None,
+    trackers: list[str] | None = None,
+    out: Path | None = None,
+    json_path: Path | None = None,
+    sets: list[str] | None = None,
+    config_path: Path | None = None,
+    repeat: int = 1,
+    progress: bool | None = None,
+) -> dict[str, object]:
+    """``dualtrack bench --random N``: every tracker on a set of random scenes, and the
+    distribution of its scores.
 
-    Returns ``{"rows": [...], "distribution": {tracker: {...}}, "attributes": {tracker: {attr: {...}}}}``:
-    per tracker the mean, 10th percentile and worst seed of P@20 and AUC (and of identity
-    purity and IDF1 on many-target scenes), the median tracking rate, and per attribute the
-    P@20 and AUC over the frames carrying it (pooled over scenes).
+    Returns ``{"rows": [...], "distribution": {tracker: {...}}, "attributes": {tracker: {attr:
+    {...}}}}``: per tracker the mean, 10th percentile and worst seed of P@20 and AUC (and of
+    identity purity and IDF1 on many-target scenes), the median tracking rate, and per attribute
+    the P@20 and AUC over the frames carrying it (pooled over scenes).
     """
     import json as _json
 
@@ -339,8 +452,17 @@ def run_random_bench(count: int | None = None, split: str = "test", seeds: range
         tmp = tempfile.TemporaryDirectory(prefix="dualtrack-random-")
         out = Path(tmp.name)
     try:
-        dirs = random_scene_set(count, split, seeds, targets, Path(out) / "scenes", progress=progress)
-        rows = run_bench(dirs, trackers, out=Path(out) / "runs", sets=sets, config_path=config_path, repeat=repeat)
+        dirs = random_scene_set(
+            count, split, seeds, targets, Path(out) / "scenes", progress=progress
+        )
+        rows = run_bench(
+            dirs,
+            trackers,
+            out=Path(out) / "runs",
+            sets=sets,
+            config_path=config_path,
+            repeat=repeat,
+        )
         seed_of = {d.name: int(_json.loads((d / "scene.json").read_text())["seed"]) for d in dirs}
         by_dir = {d.name: d for d in dirs}
         attr_counts: dict[str, list[dict[str, dict[str, object]]]] = {}
@@ -358,11 +480,16 @@ def run_random_bench(count: int | None = None, split: str = "test", seeds: range
             which = track_for_truth(list(gt), tracks, mapping, "truth")  # type: ignore[arg-type]
             meta = _json.loads((d / "scene.json").read_text())
             attr_counts.setdefault(str(r["tracker"]), []).append(
-                attribute_counts(seq.truth, tracks, attribute_masks(meta, seq.n_frames), which))
-        result = {"split": split if seeds is None else "seeds", "seeds": [seed_of[d.name] for d in dirs],
-                  "targets": list(targets) if targets else None, "rows": rows,
-                  "distribution": score_distribution(rows),
-                  "attributes": {t: pool_counts(c) for t, c in attr_counts.items()}}
+                attribute_counts(seq.truth, tracks, attribute_masks(meta, seq.n_frames), which)
+            )
+        result = {
+            "split": split if seeds is None else "seeds",
+            "seeds": [seed_of[d.name] for d in dirs],
+            "targets": list(targets) if targets else None,
+            "rows": rows,
+            "distribution": score_distribution(rows),
+            "attributes": {t: pool_counts(c) for t, c in attr_counts.items()},
+        }
         if json_path is not None:
             Path(json_path).write_text(_json.dumps(_json_clean(result), indent=2) + "\n")
         return result
@@ -378,7 +505,8 @@ def _json_clean(x: object) -> object:
 
 
 def score_distribution(rows: list[dict[str, object]]) -> dict[str, dict[str, object]]:
-    """Per tracker over its rows: mean, 10th percentile and worst (with its seed) of each score, median fps."""
+    """Per tracker over its rows: mean, 10th percentile and worst (with its seed) of each score,
+    median fps."""
     import numpy as np
 
     out: dict[str, dict[str, object]] = {}
@@ -386,30 +514,53 @@ def score_distribution(rows: list[dict[str, object]]) -> dict[str, dict[str, obj
     for t in trackers:
         mine = [r for r in rows if r["tracker"] == t and "skipped" not in r and "failed" not in r]
         if not mine:
-            why = next((r.get("skipped") or r.get("failed") for r in rows if r["tracker"] == t), "no runs")
+            why = next(
+                (r.get("skipped") or r.get("failed") for r in rows if r["tracker"] == t), "no runs"
+            )
             out[t] = {"skipped": why}
             continue
         d: dict[str, object] = {"scenes": len(mine)}
         for key in ("p20", "auc", "purity", "idf1", "mota"):
-            vals = [(float(r[key]), r.get("seed")) for r in mine if isinstance(r.get(key), int | float)]
+            vals = [
+                (float(r[key]), r.get("seed")) for r in mine if isinstance(r.get(key), int | float)
+            ]
             if not vals:
                 continue
             v = np.array([x for x, _ in vals])
             worst = min(vals, key=lambda p: p[0])
-            d[key] = {"mean": float(v.mean()), "p10": float(np.percentile(v, 10)), "worst": worst[0], "worst_seed": worst[1],
-                      "n": len(vals)}
-        fps = [float(r["fps_tracking"]) for r in mine if isinstance(r.get("fps_tracking"), int | float)]
+            d[key] = {
+                "mean": float(v.mean()),
+                "p10": float(np.percentile(v, 10)),
+                "worst": worst[0],
+                "worst_seed": worst[1],
+                "n": len(vals),
+            }
+        fps = [
+            float(r["fps_tracking"])
+            for r in mine
+            if isinstance(r.get("fps_tracking"), int | float)
+        ]
         d["fps_tracking_median"] = float(np.median(fps)) if fps else None
         out[t] = d
     return out
 
 
 def format_distribution(result: dict[str, object]) -> str:
-    """The tables ``bench --random`` prints: the score distribution per tracker, then per attribute."""
+    """The tables ``bench --random`` prints: the score distribution per tracker, then per
+    attribute."""
     dist = result["distribution"]
     assert isinstance(dist, dict)
     multi = any("purity" in v for v in dist.values() if isinstance(v, dict))
-    head = ["tracker", "scenes", "P@20 mean", "P@20 p10", "P@20 worst (seed)", "AUC mean", "AUC p10", "AUC worst (seed)"]
+    head = [
+        "tracker",
+        "scenes",
+        "P@20 mean",
+        "P@20 p10",
+        "P@20 worst (seed)",
+        "AUC mean",
+        "AUC p10",
+        "AUC worst (seed)",
+    ]
     if multi:
         head += ["purity mean", "purity p10", "IDF1 mean", "IDF1 p10"]
     head += ["fps (median)"]
@@ -423,8 +574,16 @@ def format_distribution(result: dict[str, object]) -> str:
             lines.append(f"| {t} | skipped: {d['skipped']} |" + "  |" * (len(head) - 2))
             continue
         p, a = d.get("p20", {}), d.get("auc", {})
-        cells = [t, str(d["scenes"]), f(p.get("mean")), f(p.get("p10")), f"{f(p.get('worst'))} ({p.get('worst_seed')})",
-                 f(a.get("mean")), f(a.get("p10")), f"{f(a.get('worst'))} ({a.get('worst_seed')})"]
+        cells = [
+            t,
+            str(d["scenes"]),
+            f(p.get("mean")),
+            f(p.get("p10")),
+            f"{f(p.get('worst'))} ({p.get('worst_seed')})",
+            f(a.get("mean")),
+            f(a.get("p10")),
+            f"{f(a.get('worst'))} ({a.get('worst_seed')})",
+        ]
         if multi:
             pu, idf = d.get("purity", {}), d.get("idf1", {})
             cells += [f(pu.get("mean")), f(pu.get("p10")), f(idf.get("mean")), f(idf.get("p10"))]
@@ -434,12 +593,19 @@ def format_distribution(result: dict[str, object]) -> str:
     assert isinstance(attrs, dict)
     names = sorted({a for v in attrs.values() for a in v})
     if names:
-        lines += ["", "P@20 / AUC over the frames with each attribute (frames pooled over the scenes):", ""]
+        lines += [
+            "",
+            "P@20 / AUC over the frames with each attribute (frames pooled over the scenes):",
+            "",
+        ]
         trk = list(attrs)
         lines.append("| attribute | frames | " + " | ".join(trk) + " |")
         lines.append("|" + "---|" * (len(trk) + 2))
         for name in names:
             frames = next((int(v[name]["frames"]) for v in attrs.values() if name in v), 0)
-            cells = [f"{f(attrs[t].get(name, {}).get('p20'))} / {f(attrs[t].get(name, {}).get('auc'))}" for t in trk]
+            cells = [
+                f"{f(attrs[t].get(name, {}).get('p20'))} / {f(attrs[t].get(name, {}).get('auc'))}"
+                for t in trk
+            ]
             lines.append(f"| {name} | {frames} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -21,12 +21,27 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _add_open_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--channel", choices=("visible", "infrared"),
-                   help="what a one-channel folder holds (default: grey = infrared); in a two-channel folder, use only this channel")
-    p.add_argument("--align", choices=("none", "resize"), default="none",
-                   help="'resize' scales infrared frames to the visible size when they differ")
-    p.add_argument("--gt-base", type=float, default=None, metavar="B",
-                   help="coordinate base of the ground-truth files (0 or 1; default per layout)")
+    p.add_argument(
+        "--channel",
+        choices=("visible", "infrared"),
+        help=(
+            "what a one-channel folder holds (default: grey = infrared); in a two-channel "
+            "folder, use only this channel"
+        ),
+    )
+    p.add_argument(
+        "--align",
+        choices=("none", "resize"),
+        default="none",
+        help="'resize' scales infrared frames to the visible size when they differ",
+    )
+    p.add_argument(
+        "--gt-base",
+        type=float,
+        default=None,
+        metavar="B",
+        help="coordinate base of the ground-truth files (0 or 1; default per layout)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -41,13 +56,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("seq_dir", type=Path)
     p.add_argument("--out", type=Path, help="run folder (default runs/<sequence name>)")
     p.add_argument("--tracker", default=None, help="tracker engine (see 'dualtrack trackers')")
-    p.add_argument("--init", action="append", metavar="X,Y,W,H", help="initial box (repeatable; ids 1..N)")
+    p.add_argument(
+        "--init", action="append", metavar="X,Y,W,H", help="initial box (repeatable; ids 1..N)"
+    )
     p.add_argument("--init-file", type=Path, help="file of x,y,w,h lines or MOT rows of frame 1")
     p.add_argument("--detect", action="store_true", help="find the initial targets automatically")
-    p.add_argument("--associator", choices=("hungarian", "chnn"), default=None,
-                   help="data association of --tracker detect (same as --set association.associator=...)")
+    p.add_argument(
+        "--associator",
+        choices=("hungarian", "chnn"),
+        default=None,
+        help="data association of --tracker detect (same as --set association.associator=...)",
+    )
     p.add_argument("--config", type=Path, help="TOML file of parameters ([section] tables)")
-    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE", help="override one parameter")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.PARAM=VALUE",
+        help="override one parameter",
+    )
     p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
     p.add_argument("--no-plots", action="store_true", help="do not write plots/")
     p.add_argument("--protocol", choices=PROTOCOLS, default="default")
@@ -60,15 +87,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("tracks_csv", type=Path)
     p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     p.add_argument("--protocol", choices=PROTOCOLS, default="default")
-    p.add_argument("--mot-rule", choices=("trackeval", "motmetrics"), default="trackeval",
-                   help="CLEAR matching of the many-target scores: TrackEval's (the MOTChallenge numbers) or "
-                        "py-motmetrics' (a match carried across gaps)")
-    p.add_argument("--ids", choices=("auto", "truth", "assign"), default="auto",
-                   help="score each truth id against the track with its id (truth), the IDF1 assignment's track "
-                        "(assign, for detection-made ids), or truth when every track id is a truth id (auto)")
+    p.add_argument(
+        "--mot-rule",
+        choices=("trackeval", "motmetrics"),
+        default="trackeval",
+        help="CLEAR matching of the many-target scores: TrackEval's (the MOTChallenge numbers) or "
+        "py-motmetrics' (a match carried across gaps)",
+    )
+    p.add_argument(
+        "--ids",
+        choices=("auto", "truth", "assign"),
+        default="auto",
+        help=(
+            "score each truth id against the track with its id (truth), the IDF1 assignment's "
+            "track (assign, for detection-made ids), or truth when every track id is a truth id "
+            "(auto)"
+        ),
+    )
     _add_open_options(p)
 
-    p = sub.add_parser("detect", help="STDM detection on every frame: det.txt, rois.csv, detections.rrd")
+    p = sub.add_parser(
+        "detect", help="STDM detection on every frame: det.txt, rois.csv, detections.rrd"
+    )
     p.add_argument("seq_dir", type=Path)
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--no-rrd", action="store_true")
@@ -78,53 +118,151 @@ def build_parser() -> argparse.ArgumentParser:
     _add_open_options(p)
 
     p = sub.add_parser("synth", help="write synthetic sequences with exact ground truth")
-    p.add_argument("name", nargs="?", help="scenario name (see --list), or 'random' for a scene drawn from the seed")
+    p.add_argument(
+        "name",
+        nargs="?",
+        help="scenario name (see --list), or 'random' for a scene drawn from the seed",
+    )
     p.add_argument("out_dir", nargs="?", type=Path)
-    p.add_argument("--list", action="store_true", help="print the scenarios, one per line, name first")
+    p.add_argument(
+        "--list", action="store_true", help="print the scenarios, one per line, name first"
+    )
     p.add_argument("--all", action="store_true", help="write every scenario into OUT_DIR/<name>/")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--seeds", default=None, metavar="A-B",
-                   help="random: one scene per seed A..B (inclusive) into OUT_DIR/random-<seed>/")
-    p.add_argument("--targets", default=None, metavar="K|A-B",
-                   help="random: number of targets, or a range to draw it from (default drawn 1-3)")
-    p.add_argument("--size", default="320x240", metavar="WxH", help="random: frame size (default 320x240)")
-    p.add_argument("--frames", type=int, default=200, metavar="N", help="random: sequence length (default 200)")
+    p.add_argument(
+        "--seeds",
+        default=None,
+        metavar="A-B",
+        help="random: one scene per seed A..B (inclusive) into OUT_DIR/random-<seed>/",
+    )
+    p.add_argument(
+        "--targets",
+        default=None,
+        metavar="K|A-B",
+        help="random: number of targets, or a range to draw it from (default drawn 1-3)",
+    )
+    p.add_argument(
+        "--size", default="320x240", metavar="WxH", help="random: frame size (default 320x240)"
+    )
+    p.add_argument(
+        "--frames",
+        type=int,
+        default=200,
+        metavar="N",
+        help="random: sequence length (default 200)",
+    )
     p.add_argument("--ir16", action="store_true", help="random: write 16-bit infrared PNGs")
     p.add_argument("--force", action="store_true", help="overwrite existing sequence folders")
 
-    p = sub.add_parser("bench", help="compare trackers on sequences: accuracy and speed on one core")
+    p = sub.add_parser(
+        "bench", help="compare trackers on sequences: accuracy and speed on one core"
+    )
     p.add_argument("seq_dirs", type=Path, nargs="*")
-    p.add_argument("--targets", default=None, metavar="N,N,...",
-                   help="instead of sequences: fps vs number of targets on synthetic scenes (e.g. 1,2,4,8)")
+    p.add_argument(
+        "--targets",
+        default=None,
+        metavar="N,N,...",
+        help="instead of sequences: fps vs number of targets on synthetic scenes (e.g. 1,2,4,8)",
+    )
     p.add_argument("--trackers", default=None, help="comma-separated tracker names")
     p.add_argument("--json", type=Path, help="also write the table as JSON")
-    p.add_argument("--out", type=Path, help="keep the run folders here (default: a temporary folder)")
-    p.add_argument("--repeat", type=int, default=1, metavar="N",
-                   help="time every run N times and keep the fastest (default 1)")
-    p.add_argument("--random", type=int, default=None, metavar="N",
-                   help="instead of sequences: N random scenes of the --split, and the distribution of the scores")
-    p.add_argument("--split", choices=("test", "dev"), default="test",
-                   help="random scenes: 'test' seeds (only ever scored, the default) or 'dev' seeds (for tuning)")
-    p.add_argument("--seeds", default=None, metavar="A-B", help="random scenes: these seeds instead of a split")
-    p.add_argument("--random-targets", default=None, metavar="K|A-B",
-                   help="random scenes: number of targets per scene (default drawn 1-3)")
+    p.add_argument(
+        "--out", type=Path, help="keep the run folders here (default: a temporary folder)"
+    )
+    p.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        metavar="N",
+        help="time every run N times and keep the fastest (default 1)",
+    )
+    p.add_argument(
+        "--random",
+        type=int,
+        default=None,
+        metavar="N",
+        help=(
+            "instead of sequences: N random scenes of the --split, and the distribution of "
+            "the scores"
+        ),
+    )
+    p.add_argument(
+        "--split",
+        choices=("test", "dev"),
+        default="test",
+        help=(
+            "random scenes: 'test' seeds (only ever scored, the default) or 'dev' seeds (for "
+            "tuning)"
+        ),
+    )
+    p.add_argument(
+        "--seeds",
+        default=None,
+        metavar="A-B",
+        help="random scenes: these seeds instead of a split",
+    )
+    p.add_argument(
+        "--random-targets",
+        default=None,
+        metavar="K|A-B",
+        help="random scenes: number of targets per scene (default drawn 1-3)",
+    )
     p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
     p.add_argument("--config", type=Path)
     _add_open_options(p)
 
-    p = sub.add_parser("batch", help="run every sequence under a folder (locally or on Dask) and write one report")
+    p = sub.add_parser(
+        "batch", help="run every sequence under a folder (locally or on Dask) and write one report"
+    )
     p.add_argument("root", type=Path, help="archive root: every sequence folder under it is run")
-    p.add_argument("--out", type=Path, required=True, help="one run folder per sequence, report.json/.md, plots/")
-    p.add_argument("--trackers", default=None, help="comma-separated tracker names (default: the default tracker)")
-    p.add_argument("--workers", type=int, default=None, help="sequences at a time on this machine (default: cores)")
-    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT", help="run on a Dask distributed cluster")
-    p.add_argument("--ship-frames", action="store_true",
-                   help="with --scheduler: send each sequence's files to the worker (default: workers read ROOT's path)")
-    p.add_argument("--force", action="store_true", help="redo sequences whose run folder is complete")
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="one run folder per sequence, report.json/.md, plots/",
+    )
+    p.add_argument(
+        "--trackers",
+        default=None,
+        help="comma-separated tracker names (default: the default tracker)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="sequences at a time on this machine (default: cores)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="tcp://HOST:PORT",
+        help="run on a Dask distributed cluster",
+    )
+    p.add_argument(
+        "--ship-frames",
+        action="store_true",
+        help=(
+            "with --scheduler: send each sequence's files to the worker (default: workers "
+            "read ROOT's path)"
+        ),
+    )
+    p.add_argument(
+        "--force", action="store_true", help="redo sequences whose run folder is complete"
+    )
     p.add_argument("--protocol", choices=PROTOCOLS, default="default")
-    p.add_argument("--export", choices=("rgbt234", "gtot", "lasher", "vtuav"), default=None,
-                   help="also write each tracker's results in that toolkit's per-sequence format")
-    p.add_argument("--timeout", type=float, default=None, metavar="SECONDS", help="a sequence taking longer fails")
+    p.add_argument(
+        "--export",
+        choices=("rgbt234", "gtot", "lasher", "vtuav"),
+        default=None,
+        help="also write each tracker's results in that toolkit's per-sequence format",
+    )
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="a sequence taking longer fails",
+    )
     p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd per sequence")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
     p.add_argument("--config", type=Path)
@@ -137,18 +275,39 @@ def _cmd_track(a: argparse.Namespace) -> int:
     from pipeline.run import RunOptions, run_track
     from pipeline.trackers import DEFAULT_TRACKER
 
-    res = run_track(a.seq_dir, RunOptions(
-        tracker=a.tracker or DEFAULT_TRACKER, out_dir=a.out, init=a.init, init_file=a.init_file, detect=a.detect,
-        channel=a.channel, align=a.align, gt_base=a.gt_base, config_path=a.config,
-        sets=a.set + ([f"association.associator={a.associator}"] if a.associator else []),
-        rrd=not a.no_rrd, plots=not a.no_plots, protocol=a.protocol, force=a.force, stop_frame=a.frames,
-    ))
+    res = run_track(
+        a.seq_dir,
+        RunOptions(
+            tracker=a.tracker or DEFAULT_TRACKER,
+            out_dir=a.out,
+            init=a.init,
+            init_file=a.init_file,
+            detect=a.detect,
+            channel=a.channel,
+            align=a.align,
+            gt_base=a.gt_base,
+            config_path=a.config,
+            sets=a.set + ([f"association.associator={a.associator}"] if a.associator else []),
+            rrd=not a.no_rrd,
+            plots=not a.no_plots,
+            protocol=a.protocol,
+            force=a.force,
+            stop_frame=a.frames,
+        ),
+    )
     s = res.summary
     _warn(s.get("warnings"))
-    line = f"{res.out_dir}: {s['frames']}/{s['frames_total']} frames, {s['tracker']}, fps_tracking {s['fps_tracking']}"
+    line = (
+        f"{res.out_dir}: {s['frames']}/{s['frames_total']} frames, {s['tracker']}, "
+        f"fps_tracking {s['fps_tracking']}"
+    )
     m = s.get("metrics")
     if isinstance(m, dict):
-        parts = [f"{k} {m[k]:.3f}" for k in ("p20", "auc", "mpr", "msr", "pr", "sr", "mota", "idf1") if isinstance(m.get(k), float)]
+        parts = [
+            f"{k} {m[k]:.3f}"
+            for k in ("p20", "auc", "mpr", "msr", "pr", "sr", "mota", "idf1")
+            if isinstance(m.get(k), float)
+        ]
         line += ", " + ", ".join(parts)
     print(line)
     if res.crash is not None and os.environ.get("DUALTRACK_DEBUG"):
@@ -162,12 +321,19 @@ def _warn(warnings: object) -> None:
 
 
 def _ending(error: str | None, interrupted: bool, frames: int, out: Path) -> int:
-    """The exit status of a run, with its one line on stderr (the run loop kept every output valid)."""
+    """The exit status of a run, with its one line on stderr (the run loop kept every output
+    valid)."""
     if error:
-        print(f"{PROG}: error: {error} (results for the {frames} frames before it are in {out})", file=sys.stderr)
+        print(
+            f"{PROG}: error: {error} (results for the {frames} frames before it are in {out})",
+            file=sys.stderr,
+        )
         return 1
     if interrupted:
-        print(f"{PROG}: interrupted after {frames} frames; outputs in {out} are valid", file=sys.stderr)
+        print(
+            f"{PROG}: interrupted after {frames} frames; outputs in {out} are valid",
+            file=sys.stderr,
+        )
         return 130
     return 0
 
@@ -177,13 +343,40 @@ def _cmd_evaluate(a: argparse.Namespace) -> int:
 
     from pipeline.eval import evaluate_files
 
-    m = evaluate_files(a.seq_dir, a.tracks_csv, a.protocol, a.ids, a.mot_rule, channel=a.channel, align=a.align,
-                       gt_base=a.gt_base)
+    m = evaluate_files(
+        a.seq_dir,
+        a.tracks_csv,
+        a.protocol,
+        a.ids,
+        a.mot_rule,
+        channel=a.channel,
+        align=a.align,
+        gt_base=a.gt_base,
+    )
     _warn(m.get("warnings"))
     if a.json:
         print(json.dumps(m))
         return 0
-    keys = [k for k in ("p5", "p20", "auc", "mean_error_px", "npr", "mpr", "msr", "pr", "sr", "mota", "motp", "idf1", "id_switches", "hota") if k in m]
+    keys = [
+        k
+        for k in (
+            "p5",
+            "p20",
+            "auc",
+            "mean_error_px",
+            "npr",
+            "mpr",
+            "msr",
+            "pr",
+            "sr",
+            "mota",
+            "motp",
+            "idf1",
+            "id_switches",
+            "hota",
+        )
+        if k in m
+    ]
     for k in keys:
         v = m[k]
         print(f"{k:>14}  {v:.4f}" if isinstance(v, float) else f"{k:>14}  {v}")
@@ -220,10 +413,20 @@ def _cmd_synth_random(a: argparse.Namespace) -> int:
         return 0
     with Progress(len(seeds), "synth random") as bar:
         for seed in seeds:
-            synthesize_random(a.out_dir / random_folder_name(seed), seed, targets, size, a.frames, a.ir16, a.force,
-                              progress=False)
+            synthesize_random(
+                a.out_dir / random_folder_name(seed),
+                seed,
+                targets,
+                size,
+                a.frames,
+                a.ir16,
+                a.force,
+                progress=False,
+            )
             bar.update(1)
-    print(f"wrote {len(seeds)} random scenes (seeds {seeds.start}-{seeds.stop - 1}) into {a.out_dir}")
+    print(
+        f"wrote {len(seeds)} random scenes (seeds {seeds.start}-{seeds.stop - 1}) into {a.out_dir}"
+    )
     return 0
 
 
@@ -237,7 +440,10 @@ def _cmd_synth(a: argparse.Namespace) -> int:
     from pipeline.synthetic import SCENARIOS, synthesize
 
     if a.list:
-        print("random  a whole scene drawn from the seed: background, targets, paths, events, sensor (--seed, --seeds A-B)")
+        print(
+            "random  a whole scene drawn from the seed: background, targets, paths, events, "
+            "sensor (--seed, --seeds A-B)"
+        )
         for name, sc in SCENARIOS.items():
             print(f"{name}  {sc.description}")
         return 0
@@ -281,14 +487,27 @@ def _cmd_bench(a: argparse.Namespace) -> int:
         from pipeline.synthetic.family import parse_seed_range, parse_target_count
 
         if a.seq_dirs or a.targets:
-            raise InputError("bench --random/--seeds runs on generated scenes: give no sequence folders or --targets")
+            raise InputError(
+                "bench --random/--seeds runs on generated scenes: give no sequence folders or "
+                "--targets"
+            )
         try:
             seeds = parse_seed_range(a.seeds) if a.seeds is not None else None
             targets = parse_target_count(a.random_targets)
         except ValueError as exc:
             raise InputError(str(exc)) from None
-        res = run_random_bench(a.random, a.split, seeds, targets, trackers, out=a.out, json_path=a.json, sets=a.set,
-                               config_path=a.config, repeat=a.repeat)
+        res = run_random_bench(
+            a.random,
+            a.split,
+            seeds,
+            targets,
+            trackers,
+            out=a.out,
+            json_path=a.json,
+            sets=a.set,
+            config_path=a.config,
+            repeat=a.repeat,
+        )
         print(format_distribution(res))
         return 0
     if a.targets:
@@ -297,16 +516,32 @@ def _cmd_bench(a: argparse.Namespace) -> int:
         try:
             counts = [int(v) for v in a.targets.split(",") if v.strip()]
         except ValueError:
-            raise InputError(f"--targets takes comma-separated integers; got {a.targets!r}") from None
-        rows = run_scaling(counts, trackers, out=a.out, sets=a.set, config_path=a.config, repeat=a.repeat)
+            raise InputError(
+                f"--targets takes comma-separated integers; got {a.targets!r}"
+            ) from None
+        rows = run_scaling(
+            counts, trackers, out=a.out, sets=a.set, config_path=a.config, repeat=a.repeat
+        )
         if a.json:
             a.json.write_text(json.dumps({"rows": rows}, indent=2) + "\n")
         print(format_scaling(rows))
         return 0
     if not a.seq_dirs:
-        raise InputError("bench needs sequence folders, or --targets N,N,... for the fps-vs-targets table")
-    rows = run_bench(a.seq_dirs, trackers, out=a.out, json_path=a.json, sets=a.set, config_path=a.config,
-                     repeat=a.repeat, channel=a.channel, align=a.align, gt_base=a.gt_base)
+        raise InputError(
+            "bench needs sequence folders, or --targets N,N,... for the fps-vs-targets table"
+        )
+    rows = run_bench(
+        a.seq_dirs,
+        trackers,
+        out=a.out,
+        json_path=a.json,
+        sets=a.set,
+        config_path=a.config,
+        repeat=a.repeat,
+        channel=a.channel,
+        align=a.align,
+        gt_base=a.gt_base,
+    )
     print(format_table(rows))
     return 1 if any("failed" in r for r in rows) else 0
 
@@ -322,15 +557,30 @@ def _cmd_batch(a: argparse.Namespace) -> int:
         raise InputError(f"--trackers names no tracker: {a.trackers!r}")
     if a.timeout is not None and not a.timeout > 0:
         raise InputError(f"--timeout must be a positive number of seconds; got {a.timeout:g}")
-    opts = BatchOptions(trackers=trackers, workers=a.workers, scheduler=a.scheduler, force=a.force,
-                        protocol=a.protocol, export=a.export, sets=tuple(a.set), config_path=a.config,
-                        rrd=not a.no_rrd, ship_frames=a.ship_frames, timeout_s=a.timeout)
+    opts = BatchOptions(
+        trackers=trackers,
+        workers=a.workers,
+        scheduler=a.scheduler,
+        force=a.force,
+        protocol=a.protocol,
+        export=a.export,
+        sets=tuple(a.set),
+        config_path=a.config,
+        rrd=not a.no_rrd,
+        ship_frames=a.ship_frames,
+        timeout_s=a.timeout,
+    )
     res = run_batch(a.root, a.out, opts)
     n = {st: sum(r.status == st for r in res.results) for st in ("done", "skipped", "failed")}
-    print(f"{res.out_dir}: {n['done']} done, {n['skipped']} already complete, {n['failed']} failed "
-          f"in {res.wall_seconds:.1f} s; report in {res.out_dir / 'report.md'}")
+    print(
+        f"{res.out_dir}: {n['done']} done, {n['skipped']} already complete, {n['failed']} failed "
+        f"in {res.wall_seconds:.1f} s; report in {res.out_dir / 'report.md'}"
+    )
     if res.interrupted:
-        print(f"{PROG}: interrupted; finished sequences and the report in {res.out_dir} are valid", file=sys.stderr)
+        print(
+            f"{PROG}: interrupted; finished sequences and the report in {res.out_dir} are valid",
+            file=sys.stderr,
+        )
         return 130
     return 1 if n["failed"] else 0
 
@@ -338,8 +588,17 @@ def _cmd_batch(a: argparse.Namespace) -> int:
 def _cmd_detect(a: argparse.Namespace) -> int:
     from pipeline.detect_run import run_detect
 
-    res = run_detect(a.seq_dir, a.out, a.set, a.config, rrd=not a.no_rrd, force=a.force, channel=a.channel,
-                     align=a.align, gt_base=a.gt_base)
+    res = run_detect(
+        a.seq_dir,
+        a.out,
+        a.set,
+        a.config,
+        rrd=not a.no_rrd,
+        force=a.force,
+        channel=a.channel,
+        align=a.align,
+        gt_base=a.gt_base,
+    )
     s = res.summary
     _warn(s.get("warnings"))
 
@@ -347,12 +606,18 @@ def _cmd_detect(a: argparse.Namespace) -> int:
         v = s.get(key)
         return f"{v:.{nd}f}" if isinstance(v, int | float) else "n/a"
 
-    line = f"{res.out_dir}: {s['frames']} frames, {f('detections_per_frame', 2)} detections per frame, " \
-           f"{f('ms_per_frame', 3)} ms per frame"
+    line = (
+        f"{res.out_dir}: {s['frames']} frames, {f('detections_per_frame', 2)} detections per "
+        "frame, "
+        f"{f('ms_per_frame', 3)} ms per frame"
+    )
     if s.get("background_seconds"):
         line += f" (and {f('background_seconds', 2)} s for the sequence's background)"
     if "targets_scored" in s:
-        line += f", recall {f('recall', 3)}, precision {f('precision', 3)} ({s['targets_scored']} visible targets)"
+        line += (
+            f", recall {f('recall', 3)}, precision {f('precision', 3)} "
+            f"({s['targets_scored']} visible targets)"
+        )
     print(line)
     return _ending(res.error, res.interrupted, int(s["frames"]), res.out_dir)
 
@@ -369,13 +634,21 @@ def _cmd_trackers(_a: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"track": _cmd_track, "evaluate": _cmd_evaluate, "synth": _cmd_synth, "bench": _cmd_bench,
-            "batch": _cmd_batch, "detect": _cmd_detect, "trackers": _cmd_trackers}
+COMMANDS = {
+    "track": _cmd_track,
+    "evaluate": _cmd_evaluate,
+    "synth": _cmd_synth,
+    "bench": _cmd_bench,
+    "batch": _cmd_batch,
+    "detect": _cmd_detect,
+    "trackers": _cmd_trackers,
+}
 
 
 def _die_with_parent() -> None:
-    """A batch's child (``DUALTRACK_DIE_WITH_PARENT=<batch pid>``) asks Linux for a SIGTERM when the batch dies,
-    so a killed batch leaves no orphan: the run loop then closes its outputs as on Ctrl-C."""
+    """A batch's child (``DUALTRACK_DIE_WITH_PARENT=<batch pid>``) asks Linux for a SIGTERM when
+    the batch dies, so a killed batch leaves no orphan: the run loop then closes its outputs as on
+    Ctrl-C."""
     parent = os.environ.get("DUALTRACK_DIE_WITH_PARENT")
     if not parent or not sys.platform.startswith("linux"):
         return
@@ -394,10 +667,16 @@ def _die_with_parent() -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     _die_with_parent()
-    # the Rerun SDK logs its own errors to stderr (a full disk twice over); ours name the file in one line
+    # the Rerun SDK logs its own errors to stderr (a full disk twice over); ours name the file in
+    # one line
     os.environ.setdefault("RUST_LOG", "off")
     if argv and argv[0] == "bench":  # one core, before numpy/OpenCV start their thread pools
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        for var in (
+            "OMP_NUM_THREADS",
+            "OPENBLAS_NUM_THREADS",
+            "MKL_NUM_THREADS",
+            "NUMBA_NUM_THREADS",
+        ):
             os.environ[var] = "1"
     parser = build_parser()
     a = parser.parse_args(argv)
@@ -422,8 +701,11 @@ def main(argv: list[str] | None = None) -> int:
         if os.environ.get("DUALTRACK_DEBUG"):
             raise
         text = " ".join(str(exc).split())  # one line, whatever the exception's message holds
-        print(f"{PROG}: internal error: {type(exc).__name__}: {text} (set DUALTRACK_DEBUG=1 for the traceback)",
-              file=sys.stderr)
+        print(
+            f"{PROG}: internal error: {type(exc).__name__}: {text} (set DUALTRACK_DEBUG=1 for "
+            "the traceback)",
+            file=sys.stderr,
+        )
         return 1
 
 

@@ -105,7 +105,9 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if origin is typing.Literal:
         allowed = typing.get_args(hint)
         if value not in allowed:
-            raise ConfigError(f"{where} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
+            raise ConfigError(
+                f"{where} must be one of {', '.join(map(repr, allowed))}; got {value!r}"
+            )
         return value
     if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(hint) if a is not type(None)]
@@ -123,7 +125,16 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if hint is bool:
         if isinstance(value, bool):
             return value
-        if isinstance(value, str) and value.lower() in ("true", "1", "yes", "on", "false", "0", "no", "off"):
+        if isinstance(value, str) and value.lower() in (
+            "true",
+            "1",
+            "yes",
+            "on",
+            "false",
+            "0",
+            "no",
+            "off",
+        ):
             return value.lower() in ("true", "1", "yes", "on")
         raise ConfigError(f"{where} must be true or false; got {value!r}")
     if hint is int:
@@ -218,5 +229,8 @@ def config_to_dict(cfg: PipelineConfig) -> dict[str, dict[str, Any]]:
     """Plain dict of the resolved config (for summary.json and the .rrd)."""
     out = {}
     for f in dataclasses.fields(cfg):
-        out[f.name] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(getattr(cfg, f.name)).items()}
+        out[f.name] = {
+            k: (list(v) if isinstance(v, tuple) else v)
+            for k, v in dataclasses.asdict(getattr(cfg, f.name)).items()
+        }
     return out

@@ -47,28 +47,38 @@ class DetectItem:
 
 
 def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
-    return bool(a[0] < b[0] + b[2] and b[0] < a[0] + a[2] and a[1] < b[1] + b[3] and b[1] < a[1] + a[3])
+    return bool(
+        a[0] < b[0] + b[2] and b[0] < a[0] + a[2] and a[1] < b[1] + b[3] and b[1] < a[1] + a[3]
+    )
 
 
-def score_frame(d: Detections, boxes: list[np.ndarray], visible: list[bool],
-                distractors: list[np.ndarray] = ()) -> tuple[int, int, int, int]:
+def score_frame(
+    d: Detections, boxes: list[np.ndarray], visible: list[bool], distractors: list[np.ndarray] = ()
+) -> tuple[int, int, int, int]:
     """(targets wanted, found, ROIs, correct ROIs) of one frame (see the module doc).
 
     A ROI whose centre lies in a distractor's box (a moving object that is not a target) and
     in no target's box is left out of the ROI count.
     """
+
     def inside(r, b):
         return b[0] <= r.centroid[0] <= b[0] + b[2] and b[1] <= r.centroid[1] <= b[1] + b[3]
 
     want = found = 0
     for k, b in enumerate(boxes):
-        if not visible[k] or any(_overlap(b, o) for j, o in enumerate(boxes) if j != k) \
-                or any(_overlap(b, o) for o in distractors):
+        if (
+            not visible[k]
+            or any(_overlap(b, o) for j, o in enumerate(boxes) if j != k)
+            or any(_overlap(b, o) for o in distractors)
+        ):
             continue
         want += 1
         found += any(inside(r, b) for r in d.regions)
     on_target = [any(inside(r, b) for b in boxes) for r in d.regions]
-    counted = sum(t or not any(inside(r, b) for b in distractors) for r, t in zip(d.regions, on_target, strict=True))
+    counted = sum(
+        t or not any(inside(r, b) for b in distractors)
+        for r, t in zip(d.regions, on_target, strict=True)
+    )
     return want, found, counted, sum(on_target)
 
 
@@ -79,14 +89,27 @@ def _write_files(files, frames: FramePair, item: DetectItem) -> None:
 def _recording_writer(channel: str):
     def write(rec, frames: FramePair, item: DetectItem) -> None:
         enc = getattr(frames, f"{channel}_encoded")
-        rec.write(frames.index, (enc.data, enc.media_type) if enc is not None else None, item.image, item.detections)
+        rec.write(
+            frames.index,
+            (enc.data, enc.media_type) if enc is not None else None,
+            item.image,
+            item.detections,
+        )
 
     return write
 
 
-def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = None, config_path: Path | None = None,
-               rrd: bool = True, force: bool = False, progress: bool | None = None, threads: bool = True,
-               **open_kw: object) -> DetectResult:
+def run_detect(
+    seq_path: str | Path,
+    out: str | Path,
+    sets: list[str] | None = None,
+    config_path: Path | None = None,
+    rrd: bool = True,
+    force: bool = False,
+    progress: bool | None = None,
+    threads: bool = True,
+    **open_kw: object,
+) -> DetectResult:
     from pipeline.runloop import AdaptedSink, Job, run_job
 
     seq = open_sequence(seq_path, **open_kw)  # type: ignore[arg-type]
@@ -113,7 +136,9 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
             background[0] = source.at(fp.index)
             bg_s[0] += time.perf_counter() - tb
         t0 = time.perf_counter()
-        d = detect(to_grey(img), cfg.detection, background[0], fp.visible if ch == "infrared" else None)
+        d = detect(
+            to_grey(img), cfg.detection, background[0], fp.visible if ch == "infrared" else None
+        )
         background[0] = d.background
         dt = time.perf_counter() - t0
         det_s[0] += dt
@@ -145,17 +170,38 @@ def run_detect(seq_path: str | Path, out: str | Path, sets: list[str] | None = N
             "background_seconds": round(bg_s[0], 3),
         }
         if truth:
-            extra.update({"targets_scored": int(counts[0]),
-                          "recall": float(counts[1] / counts[0]) if counts[0] else None,
-                          "precision": float(counts[3] / counts[2]) if counts[2] else None})
+            extra.update(
+                {
+                    "targets_scored": int(counts[0]),
+                    "recall": float(counts[1] / counts[0]) if counts[0] else None,
+                    "precision": float(counts[3] / counts[2]) if counts[2] else None,
+                }
+            )
         return extra
 
     summary: dict[str, object] = {
-        "sequence": seq.name, "channel": ch, "frames": 0, "frames_total": seq.n_frames,
+        "sequence": seq.name,
+        "channel": ch,
+        "frames": 0,
+        "frames_total": seq.n_frames,
         "config": config_to_dict(cfg)["detection"],
     }
     if seq.warnings:
         summary["warnings"] = list(seq.warnings)
-    res = run_job(Job(f"detect {seq.name}", seq, out, DETECT_FILES, step, make_sinks, summary, finish, force=force,
-                      progress=progress, threads=threads, rate_label="fps"))
+    res = run_job(
+        Job(
+            f"detect {seq.name}",
+            seq,
+            out,
+            DETECT_FILES,
+            step,
+            make_sinks,
+            summary,
+            finish,
+            force=force,
+            progress=progress,
+            threads=threads,
+            rate_label="fps",
+        )
+    )
     return DetectResult(out, res.summary, res.complete, res.stats.interrupted, res.stats.error)

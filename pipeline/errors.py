@@ -15,7 +15,8 @@ class ConfigError(InputError):
 
 
 class OutputError(InputError):
-    """A run's outputs cannot be written (a full disk, a read-only or missing folder); names the file."""
+    """A run's outputs cannot be written (a full disk, a read-only or missing folder); names the
+    file."""
 
 
 def describe_os_error(exc: OSError, what: str = "") -> str:

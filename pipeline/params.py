@@ -23,7 +23,7 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-__all__ = ["Range", "Section", "param", "validate", "declared_range"]
+__all__ = ["Range", "Section", "declared_range", "param", "validate"]
 
 
 @dataclass(frozen=True)
@@ -89,8 +89,16 @@ def _num(v: float) -> str:
     return f"{v:g}"
 
 
-def param(default: Any, *, ge: float | None = None, gt: float | None = None, le: float | None = None,
-          lt: float | None = None, odd: bool = False, choices: tuple[Any, ...] | None = None) -> Any:
+def param(
+    default: Any,
+    *,
+    ge: float | None = None,
+    gt: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+    odd: bool = False,
+    choices: tuple[Any, ...] | None = None,
+) -> Any:
     """A dataclass field with ``default`` and a declared :class:`Range`.
 
     Examples
@@ -120,12 +128,16 @@ _CHECKS: dict[type, tuple[tuple[str, Range, bool], ...]] = {}
 
 
 def _checks(cls: type) -> tuple[tuple[str, Range, bool], ...]:
-    """``(field, range, integer)`` of every field of ``cls`` that declares a range (computed once per class)."""
+    """``(field, range, integer)`` of every field of ``cls`` that declares a range (computed once
+    per class)."""
     out = _CHECKS.get(cls)
     if out is None:
         hints = typing.get_type_hints(cls)
-        out = _CHECKS[cls] = tuple((f.name, f.metadata["range"], hints.get(f.name) is int)
-                                   for f in dataclasses.fields(cls) if "range" in f.metadata)
+        out = _CHECKS[cls] = tuple(
+            (f.name, f.metadata["range"], hints.get(f.name) is int)
+            for f in dataclasses.fields(cls)
+            if "range" in f.metadata
+        )
     return out
 
 
@@ -162,4 +174,5 @@ class Section:
         self.check()
 
     def check(self) -> None:
-        """Rules over several fields; raise ValueError naming ``section.field``. None by default."""
+        """Rules over several fields; raise ValueError naming ``section.field``. None by
+        default."""

@@ -10,7 +10,9 @@ from typing import TextIO
 class Progress:
     """``with Progress(total, "dual") as p: p.update(1, fps=...)``."""
 
-    def __init__(self, total: int, desc: str = "", enabled: bool | None = None, stream: TextIO | None = None):
+    def __init__(
+        self, total: int, desc: str = "", enabled: bool | None = None, stream: TextIO | None = None
+    ):
         self.stream = stream or sys.stderr
         self.enabled = self.stream.isatty() if enabled is None else enabled
         self.total = max(total, 1)
@@ -34,7 +36,9 @@ class Progress:
         width = 28
         bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
         rate = self.n / max(now - self.t0, 1e-9)
-        self.stream.write(f"\r{self.desc} [{bar}] {self.n}/{self.total} {rate:6.1f}/s {self.postfix}  ")
+        self.stream.write(
+            f"\r{self.desc} [{bar}] {self.n}/{self.total} {rate:6.1f}/s {self.postfix}  "
+        )
         self.stream.flush()
 
     def close(self) -> None:

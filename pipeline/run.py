@@ -30,7 +30,8 @@ RUN_FILES = ("tracks.csv", "targets.csv", "run.rrd", "summary.json", "plots")
 
 @dataclass
 class TrackStep:
-    """One iteration of :func:`iter_track`: the frames, the result and the seconds in the tracker."""
+    """One iteration of :func:`iter_track`: the frames, the result and the seconds in the
+    tracker."""
 
     frames: FramePair
     result: FrameResult
@@ -38,7 +39,9 @@ class TrackStep:
     decode_seconds: float
 
 
-def iter_track(seq: Sequence, engine: Engine, targets: list[InitTarget], stop: int | None = None) -> Iterator[TrackStep]:
+def iter_track(
+    seq: Sequence, engine: Engine, targets: list[InitTarget], stop: int | None = None
+) -> Iterator[TrackStep]:
     """Drive ``engine`` over ``seq``: ``start`` on frame 1, ``step`` on the others."""
     it = seq.frames(1, stop)
     while True:
@@ -76,11 +79,13 @@ def track(
     --------
     >>> import tempfile
     >>> from pipeline import BBox, PipelineConfig, synthesize_random, track
-    >>> folder = synthesize_random(tempfile.mkdtemp() + "/scene", seed=3, targets=1, frames=30, progress=False)
-    >>> results = track(folder, config=PipelineConfig())  # started from the scene's first-frame truth
+    >>> folder = synthesize_random(tempfile.mkdtemp() + "/scene", seed=3, targets=1, frames=30,
+    ...                            progress=False)
+    >>> results = track(folder, config=PipelineConfig())  # from the scene's first-frame truth
     >>> len(results), results[-1].targets[0].status.value
     (30, 'tracking')
-    >>> again = track(folder, tracker="meanshift", init=[BBox(*results[0].targets[0].box.as_tuple())])
+    >>> first = BBox(*results[0].targets[0].box.as_tuple())
+    >>> again = track(folder, tracker="meanshift", init=[first])
     >>> again[0].targets[0].box == results[0].targets[0].box
     True
     """
@@ -124,15 +129,20 @@ class RunResult:
     interrupted: bool = False
     error: str | None = None
     boxes: dict[int, np.ndarray] = field(default_factory=dict)
-    crash: BaseException | None = None  # the exception behind an internal error (DUALTRACK_DEBUG re-raises it)
+    crash: BaseException | None = (
+        None  # the exception behind an internal error (DUALTRACK_DEBUG re-raises it)
+    )
 
 
 def frame_truth(seq: Sequence, result: FrameResult) -> FrameTruth:
-    """The truth of this frame per channel, and each target's centre error, IoU and truth match against the
-    scored channel's truth (ids as in the truth; a target that is not reported scores as a failure)."""
+    """The truth of this frame per channel, and each target's centre error, IoU and truth match
+    against the scored channel's truth (ids as in the truth; a target that is not reported scores
+    as a failure)."""
     i = result.frame - 1
-    boxes = {ch: {tid: BBox(*b[i]) for tid, b in table.items() if not np.isnan(b[i]).any()}
-             for ch, table in seq.truth.boxes.items()}
+    boxes = {
+        ch: {tid: BBox(*b[i]) for tid, b in table.items() if not np.isnan(b[i]).any()}
+        for ch, table in seq.truth.boxes.items()
+    }
     scored = boxes.get(seq.truth.primary_channel() or "", {})
     err, iou, match = {}, {}, {}
     for t in result.targets:
@@ -170,16 +180,23 @@ def _write_rrd(sink, frames: FramePair, item: TrackItem) -> None:
     sink.write(frames, item.result, item.truth)
 
 
-def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: PipelineConfig | None = None,
-              **options: object) -> RunResult:
-    """``dualtrack track``: track a sequence folder and write its run folder (through ``pipeline.runloop``).
+def run_track(
+    seq_path: str | Path,
+    opts: RunOptions | None = None,
+    *,
+    config: PipelineConfig | None = None,
+    **options: object,
+) -> RunResult:
+    """``dualtrack track``: track a sequence folder and write its run folder (through
+    ``pipeline.runloop``).
 
     Parameters
     ----------
     seq_path : path
         The sequence folder.
     opts : RunOptions, optional
-        The options of ``dualtrack track``; or give them as keywords (``out_dir=..., tracker=...``).
+        The options of ``dualtrack track``; or give them as keywords (``out_dir=...,
+        tracker=...``).
     config : PipelineConfig, optional
         Every stage's parameters (instead of ``RunOptions.config_path`` / ``sets``).
 
@@ -190,8 +207,8 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
     >>> from pipeline import PipelineConfig, run_track, synthesize_random
     >>> root = Path(tempfile.mkdtemp())
     >>> scene = synthesize_random(root / "scene", seed=3, targets=1, frames=30, progress=False)
-    >>> res = run_track(scene, out_dir=root / "run", config=PipelineConfig(), rrd=False, plots=False,
-    ...                 progress=False)
+    >>> res = run_track(scene, out_dir=root / "run", config=PipelineConfig(), rrd=False,
+    ...                 plots=False, progress=False)
     >>> res.complete, sorted(p.name for p in res.out_dir.iterdir())
     (True, ['summary.json', 'targets.csv', 'tracks.csv'])
     >>> json.loads((res.out_dir / "summary.json").read_text())["frames"]
@@ -217,7 +234,9 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
     attach_sequence(engine, seq)
     from pipeline.trackers import NEEDS_NO_INIT, detect_init
 
-    detected_ids = opts.tracker in NEEDS_NO_INIT or (opts.detect and not opts.init and opts.init_file is None)
+    detected_ids = opts.tracker in NEEDS_NO_INIT or (
+        opts.detect and not opts.init and opts.init_file is None
+    )
     if opts.tracker in NEEDS_NO_INIT:
         targets = []
     elif detected_ids:
@@ -267,11 +286,21 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
 
         sinks: list = [AdaptedSink(CsvSink(out), _write_csv)]
         if opts.rrd:
-            start = f"{opts.tracker} on {seq.name} ({seq.layout}, {'+'.join(seq.channels)}): " + ", ".join(
-                f"T{t.id} {t.box}" for t in targets)
+            start = (
+                f"{opts.tracker} on {seq.name} ({seq.layout}, {'+'.join(seq.channels)}): "
+                + ", ".join(f"T{t.id} {t.box}" for t in targets)
+            )
             try:
-                rrd = RerunSink(out / "run.rrd", seq.channels, [t.id for t in targets], cfg.rerun, seq.name,
-                                config_to_dict(cfg), has_truth, start)
+                rrd = RerunSink(
+                    out / "run.rrd",
+                    seq.channels,
+                    [t.id for t in targets],
+                    cfg.rerun,
+                    seq.name,
+                    config_to_dict(cfg),
+                    has_truth,
+                    start,
+                )
             except BaseException:
                 sinks[0].close()
                 raise
@@ -285,16 +314,32 @@ def run_track(seq_path: str | Path, opts: RunOptions | None = None, *, config: P
         truth = _truncate(seq, done)
         table = TrackTable({k: v[:done] for k, v in boxes.items()}, {})
         id_rule = "assign" if detected_ids else "truth"  # detection-made ids are arbitrary
-        extra: dict[str, object] = {"metrics": evaluate(truth, table, done, opts.protocol, id_rule)}
+        extra: dict[str, object] = {
+            "metrics": evaluate(truth, table, done, opts.protocol, id_rule)
+        }
         if opts.plots:
             from pipeline.sinks.plots import write_plots
 
-            write_plots(out / "plots", curves(truth, table, done, id_rule), f"{seq.name} / {opts.tracker}")
+            write_plots(
+                out / "plots", curves(truth, table, done, id_rule), f"{seq.name} / {opts.tracker}"
+            )
         return extra
 
-    job = Job(f"{opts.tracker} {seq.name}", seq, out, RUN_FILES, step, make_sinks, summary, finish,
-              stop_frame=opts.stop_frame, force=opts.force, progress=opts.progress,
-              checkpoint_frames=cfg.rerun.batch_frames, threads=opts.threads)
+    job = Job(
+        f"{opts.tracker} {seq.name}",
+        seq,
+        out,
+        RUN_FILES,
+        step,
+        make_sinks,
+        summary,
+        finish,
+        stop_frame=opts.stop_frame,
+        force=opts.force,
+        progress=opts.progress,
+        checkpoint_frames=cfg.rerun.batch_frames,
+        threads=opts.threads,
+    )
     res = run_job(job)
     st = res.stats
     return RunResult(out, res.summary, res.complete, st.interrupted, st.error, boxes, st.crash)

@@ -1,4 +1,5 @@
-"""One run loop for every command that walks a sequence (``track``, ``detect``, ``bench`` and the batch's children).
+"""One run loop for every command that walks a sequence (``track``, ``detect``, ``bench`` and the
+batch's children).
 
 The loop owns what those commands share; a command differs only in its *step* (the
 tracker or the detector, called once per frame pair on the calling thread) and its *sinks*
@@ -42,7 +43,8 @@ _END = object()
 
 
 class Sink(Protocol):
-    """What the writer thread feeds: one ``write`` per frame in order, ``checkpoint`` to make it durable."""
+    """What the writer thread feeds: one ``write`` per frame in order, ``checkpoint`` to make it
+    durable."""
 
     def write(self, frames: FramePair, item: object) -> None: ...
 
@@ -52,8 +54,9 @@ class Sink(Protocol):
 
 
 class AdaptedSink:
-    """A :class:`Sink` over a file writer: ``write(frames, item)`` calls ``write_item(inner, frames, item)``;
-    ``checkpoint``, ``close`` and (where the writer has it) ``rollback`` go to the writer."""
+    """A :class:`Sink` over a file writer: ``write(frames, item)`` calls ``write_item(inner,
+    frames, item)``; ``checkpoint``, ``close`` and (where the writer has it) ``rollback`` go to the
+    writer."""
 
     def __init__(self, inner: object, write_item: Callable[[Any, FramePair, Any], None]):
         self.inner = inner
@@ -84,7 +87,9 @@ class LoopStats:
     stage_s: dict[str, float] = field(default_factory=dict)
     interrupted: bool = False
     error: str | None = None
-    crash: BaseException | None = None  # the unexpected exception behind an internal error, for debugging
+    crash: BaseException | None = (
+        None  # the unexpected exception behind an internal error, for debugging
+    )
 
 
 @dataclass
@@ -125,7 +130,8 @@ class LoopResult:
 
 
 def prepare_out_dir(out: Path, force: bool, files: tuple[str, ...]) -> None:
-    """Make the run folder: refuse a non-empty one unless ``force`` (then delete only ``files``)."""
+    """Make the run folder: refuse a non-empty one unless ``force`` (then delete only
+    ``files``)."""
     import shutil
 
     if out.exists() and not out.is_dir():
@@ -133,7 +139,10 @@ def prepare_out_dir(out: Path, force: bool, files: tuple[str, ...]) -> None:
     try:
         if out.exists() and any(out.iterdir()):
             if not force:
-                raise InputError(f"run folder {out} already exists and is not empty; pass --force to overwrite it")
+                raise InputError(
+                    f"run folder {out} already exists and is not empty; pass --force to "
+                    "overwrite it"
+                )
             for name in files:
                 p = out / name
                 if p.is_dir():
@@ -147,7 +156,9 @@ def prepare_out_dir(out: Path, force: bool, files: tuple[str, ...]) -> None:
     except (NotADirectoryError, FileExistsError):
         raise OutputError(f"--out {out}: a part of the path is a file, not a folder") from None
     except OSError as exc:
-        raise OutputError(f"cannot write the run folder {describe_os_error(exc, str(out))}") from None
+        raise OutputError(
+            f"cannot write the run folder {describe_os_error(exc, str(out))}"
+        ) from None
 
 
 class _Reader:
@@ -187,7 +198,9 @@ class _Reader:
             for fp in self._frames():
                 if not self._put(fp):
                     return
-        except BaseException as exc:  # handed to the step's thread, which raises it at the right frame
+        except (
+            BaseException
+        ) as exc:  # handed to the step's thread, which raises it at the right frame
             self._put(exc)
             return
         self._put(_END)
@@ -211,11 +224,23 @@ class _Reader:
 
 
 class _Writer:
-    """Feeds the sinks in frame order (on its own thread, or inline), with a checkpoint every ``every`` frames."""
+    """Feeds the sinks in frame order (on its own thread, or inline), with a checkpoint every
+    ``every`` frames."""
 
-    def __init__(self, sinks: list[Sink], every: int, on_checkpoint: Callable[[int], None], threaded: bool,
-                 depth: int = 32):
-        self.sinks, self.every, self.on_checkpoint, self.threaded = sinks, max(int(every), 1), on_checkpoint, threaded
+    def __init__(
+        self,
+        sinks: list[Sink],
+        every: int,
+        on_checkpoint: Callable[[int], None],
+        threaded: bool,
+        depth: int = 32,
+    ):
+        self.sinks, self.every, self.on_checkpoint, self.threaded = (
+            sinks,
+            max(int(every), 1),
+            on_checkpoint,
+            threaded,
+        )
         self.written = 0  # frames on disk (at the last successful checkpoint)
         self.queued = 0
         self.sinks_s = 0.0
@@ -236,8 +261,8 @@ class _Writer:
         self.sinks_s += time.perf_counter() - t0
 
     def _checkpoint(self) -> None:
-        """Every sink durable, then summary.json; if any part fails the row files go back to the last checkpoint,
-        so that they hold what summary.json says."""
+        """Every sink durable, then summary.json; if any part fails the row files go back to the
+        last checkpoint, so that they hold what summary.json says."""
         try:
             for s in self.sinks:
                 s.checkpoint()
@@ -276,7 +301,8 @@ class _Writer:
                 raise
 
     def close(self) -> None:
-        """Write what is queued, make it durable and close every sink (each is closed even if another fails)."""
+        """Write what is queued, make it durable and close every sink (each is closed even if
+        another fails)."""
         if self.threaded:
             self._q.put(_END)
             self._t.join()
@@ -296,7 +322,8 @@ class _Writer:
 
 
 class _Signals:
-    """SIGINT and SIGTERM set a flag the loop reads between frames; in ``holding()`` they only count."""
+    """SIGINT and SIGTERM set a flag the loop reads between frames; in ``holding()`` they only
+    count."""
 
     def __init__(self) -> None:
         self.count = 0
@@ -327,8 +354,9 @@ def _timer(stats: LoopStats) -> Iterator[None]:
 
 
 def run_job(job: Job) -> LoopResult:
-    """Run ``job`` (module doc). Bad input before the first frame raises :class:`InputError`; anything that goes
-    wrong later is reported in the result (``stats.error``, ``summary["error"]``) with every output valid."""
+    """Run ``job`` (module doc). Bad input before the first frame raises :class:`InputError`;
+    anything that goes wrong later is reported in the result (``stats.error``,
+    ``summary["error"]``) with every output valid."""
     from pipeline.sinks.summary import write_json
 
     prepare_out_dir(job.out_dir, job.force, job.files)
@@ -343,14 +371,19 @@ def run_job(job: Job) -> LoopResult:
             try:
                 write_json(summary_path, summary)
             except OSError as exc:
-                raise OutputError(f"cannot write {describe_os_error(exc, str(summary_path))}") from None
+                raise OutputError(
+                    f"cannot write {describe_os_error(exc, str(summary_path))}"
+                ) from None
 
     write_summary({})
     stats = LoopStats()
     n_total = job.seq.n_frames if job.stop_frame is None else min(job.stop_frame, job.seq.n_frames)
-    with _Signals() as sig:  # until summary.json is final: SIGINT/SIGTERM stop between frames, then only count
+    # until summary.json is final: SIGINT/SIGTERM stop between frames, then only count
+    with _Signals() as sig:
         sinks = job.make_sinks()
-        writer = _Writer(sinks, job.checkpoint_frames, lambda n: write_summary({"frames": n}), job.threads)
+        writer = _Writer(
+            sinks, job.checkpoint_frames, lambda n: write_summary({"frames": n}), job.threads
+        )
         reader = _Reader(job.seq, job.stop_frame, job.threads)
         done = 0
         with _timer(stats):
@@ -367,15 +400,19 @@ def run_job(job: Job) -> LoopResult:
                             stats.stage_s[k] = stats.stage_s.get(k, 0.0) + v
                         writer.put(frames, item)
                         done += 1
-                        bar.update(1, **{job.rate_label: f"{done / max(stats.tracker_s, 1e-9):.0f}"})
+                        bar.update(
+                            1, **{job.rate_label: f"{done / max(stats.tracker_s, 1e-9):.0f}"}
+                        )
             except KeyboardInterrupt:
                 stats.interrupted = True
             except InputError as exc:
                 stats.error = str(exc)
             except OSError as exc:
                 stats.error = describe_os_error(exc)
-            except Exception as exc:  # a bug in a step or a sink: the outputs still close and stay valid
-                stats.error = f"internal error after {done} frames: {type(exc).__name__}: {' '.join(str(exc).split())}"
+            except Exception as exc:
+                # a bug in a step or a sink: the outputs still close and stay valid
+                text = " ".join(str(exc).split())
+                stats.error = f"internal error after {done} frames: {type(exc).__name__}: {text}"
                 stats.crash = exc
             finally:
                 reader.close()
@@ -384,19 +421,28 @@ def run_job(job: Job) -> LoopResult:
                 stats.sinks_s = writer.sinks_s
         if writer.error is not None and stats.error is None:
             e = writer.error
-            stats.error = str(e) if isinstance(e, InputError) else (describe_os_error(e) if isinstance(e, OSError)
-                                                                     else f"{type(e).__name__}: {e}")
+            stats.error = (
+                str(e)
+                if isinstance(e, InputError)
+                else (
+                    describe_os_error(e) if isinstance(e, OSError) else f"{type(e).__name__}: {e}"
+                )
+            )
         stats.frames = writer.written if writer.error is not None else done
         if sig.count and stats.error is None:
             stats.interrupted = True
         complete = not stats.interrupted and stats.error is None and stats.frames == n_total
         stage = dict(stats.stage_s)
-        stage.update({"decode": stats.decode_s, "tracker": stats.tracker_s, "sinks": stats.sinks_s})
+        stage.update(
+            {"decode": stats.decode_s, "tracker": stats.tracker_s, "sinks": stats.sinks_s}
+        )
         final: dict[str, object] = {
             "frames": stats.frames,
             "stage_seconds": {k: round(v, 6) for k, v in stage.items()},
             "fps_tracking": round(done / stats.tracker_s, 3) if stats.tracker_s > 0 else None,
-            "fps_tracking_cpu": round(done / stats.tracker_cpu_s, 3) if stats.tracker_cpu_s > 0 else None,
+            "fps_tracking_cpu": round(done / stats.tracker_cpu_s, 3)
+            if stats.tracker_cpu_s > 0
+            else None,
             "fps_end_to_end": round(done / stats.wall_s, 3) if stats.wall_s > 0 else None,
             "complete": complete,
         }
@@ -413,7 +459,9 @@ def run_job(job: Job) -> LoopResult:
                 final["complete"] = False
         try:
             write_summary(final)
-        except OutputError as exc:  # the disk is full: the last checkpoint's summary stays, true to the files
+        except (
+            OutputError
+        ) as exc:  # the disk is full: the last checkpoint's summary stays, true to the files
             stats.error = stats.error or str(exc)
         if sig.count and stats.error is None:
             stats.interrupted = True

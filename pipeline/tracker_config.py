@@ -286,4 +286,3 @@ class OpenCVTrackerConfig(Section):
     section = "opencv"
 
     channel: str = param("visible", choices=("visible", "infrared"))
-

@@ -121,7 +121,9 @@ class BBox:
         """The part of the box inside a ``width`` x ``height`` frame (may be empty)."""
         return self.intersect(BBox(0.0, 0.0, float(width), float(height)))
 
-    def to_cv(self, width: int | None = None, height: int | None = None) -> tuple[int, int, int, int]:
+    def to_cv(
+        self, width: int | None = None, height: int | None = None
+    ) -> tuple[int, int, int, int]:
         """Integer ``(x, y, w, h)`` for OpenCV calls (rounded, at least 1 px, inside the frame)."""
         x, y = round(self.x), round(self.y)
         w, h = max(round(self.w), 1), max(round(self.h), 1)
@@ -223,8 +225,8 @@ class TargetResult:
     overlays : Mapping[str, BBox]
         Named auxiliary boxes to draw (``prediction``, ``search``), frame px.
     decision : str
-        The tracker's decision for this frame and why, ``case:why`` (``contour:contour-and-appearance``);
-        empty for trackers without one.
+        The tracker's decision for this frame and why, ``case:why``
+        (``contour:contour-and-appearance``); empty for trackers without one.
     """
 
     id: int
@@ -245,7 +247,8 @@ class TargetResult:
 
 
 class TruthMatch(enum.StrEnum):
-    """How a target's output compares with its truth in one frame (the .rrd's ``targets/<id>/truth``)."""
+    """How a target's output compares with its truth in one frame (the .rrd's
+    ``targets/<id>/truth``)."""
 
     OVERLAP = "overlap"  # the output box overlaps the truth (IoU > 0)
     FAILURE = "failure"  # truth exists, but there is no output or it does not overlap (IoU 0)
@@ -254,7 +257,8 @@ class TruthMatch(enum.StrEnum):
 
 @dataclass(frozen=True)
 class FrameTruth:
-    """The ground truth of one frame and how the tracker's output scores against it (for the recording).
+    """The ground truth of one frame and how the tracker's output scores against it (for the
+    recording).
 
     ``boxes[channel][id]`` are the truth boxes; ``center_error_px``, ``iou`` and ``match`` are per
     target id that has both an output and truth this frame (``inf`` / 0 / failure when the

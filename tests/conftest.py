@@ -33,7 +33,9 @@ class SceneCache:
         if key not in self._done:
             from pipeline.synthetic import synthesize
 
-            self._done[key] = synthesize(name, self.root / f"{name}-{seed}", seed=seed, progress=False)
+            self._done[key] = synthesize(
+                name, self.root / f"{name}-{seed}", seed=seed, progress=False
+            )
         return self._done[key]
 
 
@@ -43,8 +45,16 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> SceneCache:
     return SceneCache(tmp_path_factory.mktemp("synthetic"))
 
 
-def write_frames(folder: Path, n: int, size: tuple[int, int] = (64, 48), color: bool = True, ext: str = ".jpg",
-                 name: str = "{:05d}", dtype: type = np.uint8, seed: int = 0) -> list[Path]:
+def write_frames(
+    folder: Path,
+    n: int,
+    size: tuple[int, int] = (64, 48),
+    color: bool = True,
+    ext: str = ".jpg",
+    name: str = "{:05d}",
+    dtype: type = np.uint8,
+    seed: int = 0,
+) -> list[Path]:
     """Write ``n`` small frames (a bright square moving right on noise) and return their paths."""
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
@@ -66,8 +76,11 @@ def write_frames(folder: Path, n: int, size: tuple[int, int] = (64, 48), color: 
     return paths
 
 
-def write_boxes(path: Path, n: int, sep: str = ",", corners: bool = False, base: float = 0.0) -> None:
-    """Truth of the moving square of :func:`write_frames` (x, y, w, h = 10+i, 10, 10, 10 in 0-based px)."""
+def write_boxes(
+    path: Path, n: int, sep: str = ",", corners: bool = False, base: float = 0.0
+) -> None:
+    """Truth of the moving square of :func:`write_frames` (x, y, w, h = 10+i, 10, 10, 10 in 0-based
+    px)."""
     lines = []
     for i in range(n):
         x, y, w, h = 10 + i + base, 10 + base, 10, 10
@@ -77,7 +90,8 @@ def write_boxes(path: Path, n: int, sep: str = ",", corners: bool = False, base:
 
 
 def write_pair(root: Path, n: int = 6) -> Path:
-    """A two-channel RGBT234-layout folder of :func:`write_frames` with per-channel truth; returns ``root``."""
+    """A two-channel RGBT234-layout folder of :func:`write_frames` with per-channel truth; returns
+    ``root``."""
     write_frames(root / "visible", n)
     write_frames(root / "infrared", n, color=False)
     write_boxes(root / "visible.txt", n)

@@ -11,7 +11,8 @@ from rerun.chunk import RrdReader
 
 
 def open_store(path: str | Path):
-    """The recording's store; a recording without footer (a killed run) is read as a stream, as the viewer does."""
+    """The recording's store; a recording without footer (a killed run) is read as a stream, as the
+    viewer does."""
     import warnings
 
     with warnings.catch_warnings():
@@ -38,7 +39,11 @@ def rows(store, entity: str, components: list[str], timeline: str = "frame") -> 
 
 def boxes_at(store, entity: str, frame: int) -> dict[str, np.ndarray] | None:
     """Boxes of ``entity`` logged at ``frame``: mins, sizes (x, y, w, h px), class ids, labels."""
-    t = rows(store, entity, ["Boxes2D:centers", "Boxes2D:half_sizes", "Boxes2D:class_ids", "Boxes2D:labels"])
+    t = rows(
+        store,
+        entity,
+        ["Boxes2D:centers", "Boxes2D:half_sizes", "Boxes2D:class_ids", "Boxes2D:labels"],
+    )
     if t.num_rows == 0:
         return None
     sel = t.filter(pc.equal(t["frame"], frame)).to_pylist()
@@ -47,8 +52,12 @@ def boxes_at(store, entity: str, frame: int) -> dict[str, np.ndarray] | None:
     r = sel[-1]
     c = np.asarray(r["Boxes2D:centers"] or [], float).reshape(-1, 2)
     h = np.asarray(r["Boxes2D:half_sizes"] or [], float).reshape(-1, 2)
-    return {"mins": c - h, "sizes": 2 * h, "class_ids": list(r.get("Boxes2D:class_ids") or []),
-            "labels": list(r.get("Boxes2D:labels") or [])}
+    return {
+        "mins": c - h,
+        "sizes": 2 * h,
+        "class_ids": list(r.get("Boxes2D:class_ids") or []),
+        "labels": list(r.get("Boxes2D:labels") or []),
+    }
 
 
 def blob_at(store, entity: str, frame: int) -> bytes | None:
@@ -59,10 +68,15 @@ def blob_at(store, entity: str, frame: int) -> bytes | None:
     blob = sel[-1]["EncodedImage:blob"]
     if isinstance(blob, list):
         blob = blob[0]
-    return bytes(blob) if not isinstance(blob, bytes | bytearray) else bytes(blob)
+    return bytes(blob)
 
 
 def texts(store, entity: str) -> list[tuple[int, str]]:
     t = rows(store, entity, ["TextLog:text"])
-    return [(r["frame"], r["TextLog:text"][0] if isinstance(r["TextLog:text"], list) else r["TextLog:text"])
-            for r in t.to_pylist()]
+    return [
+        (
+            r["frame"],
+            r["TextLog:text"][0] if isinstance(r["TextLog:text"], list) else r["TextLog:text"],
+        )
+        for r in t.to_pylist()
+    ]

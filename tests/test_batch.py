@@ -1,4 +1,5 @@
-"""``dualtrack batch``: discovery, local pool, fault isolation, resume, report, export, Dask on loopback."""
+"""``dualtrack batch``: discovery, local pool, fault isolation, resume, report, export, Dask on
+loopback."""
 
 from __future__ import annotations
 
@@ -27,9 +28,9 @@ def tiny_pair(folder: Path, n: int = 16, dx: int = 1, seed: int = 0) -> Path:
     for i in range(n):
         x = 12 + dx * i
         v = rng.integers(60, 90, (60, 80, 3), dtype=np.uint8)
-        v[20:36, x:x + 12] = (40, 40, 210)
+        v[20:36, x : x + 12] = (40, 40, 210)
         ir = rng.integers(40, 60, (60, 80), dtype=np.uint8)
-        ir[20:36, x:x + 12] = 200
+        ir[20:36, x : x + 12] = 200
         cv2.imwrite(str(folder / "visible" / f"{i + 1:05d}v.jpg"), v)
         cv2.imwrite(str(folder / "infrared" / f"{i + 1:05d}i.jpg"), ir)
         rows.append(f"{x},20,12,16")
@@ -64,35 +65,67 @@ def test_local_batch_isolates_a_corrupt_sequence_resumes_and_reports(archive, tm
     bad = archive / "b" / "infrared" / "00008i.jpg"
     bad.write_bytes(bad.read_bytes()[:100])
     out = tmp_path / "out"
-    opts = BatchOptions(trackers=("dual", "meanshift"), workers=2, export="rgbt234", progress=False)
+    opts = BatchOptions(
+        trackers=("dual", "meanshift"), workers=2, export="rgbt234", progress=False
+    )
     res = run_batch(archive, out, opts)
     status = {r.task.key: r.status for r in res.results}
-    assert status == {"dual/a": "done", "meanshift/a": "done", "dual/b": "failed", "meanshift/b": "failed",
-                      "dual/group/c": "done", "meanshift/group/c": "done"}
+    assert status == {
+        "dual/a": "done",
+        "meanshift/a": "done",
+        "dual/b": "failed",
+        "meanshift/b": "failed",
+        "dual/group/c": "done",
+        "meanshift/group/c": "done",
+    }
     report = json.loads((out / "report.json").read_text())
     failed = report["sequences"]["dual/b"]
-    assert failed["status"] == "failed" and "00008i.jpg" in failed["error"] and "frame 8" in failed["error"]
+    assert (
+        failed["status"] == "failed"
+        and "00008i.jpg" in failed["error"]
+        and "frame 8" in failed["error"]
+    )
     done = report["sequences"]["dual/a"]
-    assert done["metrics"]["p20"] == 1.0 and done["fps_tracking"] > 0 and done["run_dir"] == "dual/a"
+    assert (
+        done["metrics"]["p20"] == 1.0 and done["fps_tracking"] > 0 and done["run_dir"] == "dual/a"
+    )
     ov = report["overall"]["dual"]
-    assert (ov["done"], ov["failed"], ov["skipped"]) == (2, 1, 0) and ov["sequences"] == 2 and ov["p20"] == pytest.approx(1.0)
+    assert (
+        (ov["done"], ov["failed"], ov["skipped"]) == (2, 1, 0)
+        and ov["sequences"] == 2
+        and ov["p20"] == pytest.approx(1.0)
+    )
     assert len(ov["precision_curve"]) == 51 and len(ov["success_curve"]) == 21
     assert (out / "report.md").read_text().count("| dual |") == 1
-    assert (out / "plots" / "precision.png").is_file() and (out / "plots" / "success.png").is_file()
+    assert (out / "plots" / "precision.png").is_file() and (
+        out / "plots" / "success.png"
+    ).is_file()
     lines = (out / "export" / "rgbt234" / "dual" / "dual_a.txt").read_text().splitlines()
-    assert len(lines) == 16 and lines[0].startswith("12.0,20.0,")  # full precision, the first frame's box
+    assert len(lines) == 16 and lines[0].startswith(
+        "12.0,20.0,"
+    )  # full precision, the first frame's box
     # the finished sequences stay as they were; a re-run skips them and retries the failure
     before = (out / "dual" / "a" / "tracks.csv").stat().st_mtime_ns
     again = run_batch(archive, out, opts)
     status = {r.task.key: r.status for r in again.results}
-    assert status["dual/a"] == "skipped" and status["meanshift/group/c"] == "skipped" and status["dual/b"] == "failed"
+    assert (
+        status["dual/a"] == "skipped"
+        and status["meanshift/group/c"] == "skipped"
+        and status["dual/b"] == "failed"
+    )
     assert (out / "dual" / "a" / "tracks.csv").stat().st_mtime_ns == before
-    assert json.loads((out / "report.json").read_text())["overall"]["dual"]["p20"] == pytest.approx(1.0)
+    assert json.loads((out / "report.json").read_text())["overall"]["dual"][
+        "p20"
+    ] == pytest.approx(1.0)
 
 
 def test_gtot_protocol_pools_frames(archive, tmp_path):
     out = tmp_path / "out"
-    res = run_batch(archive, out, BatchOptions(trackers=("meanshift",), workers=2, protocol="gtot", progress=False))
+    res = run_batch(
+        archive,
+        out,
+        BatchOptions(trackers=("meanshift",), workers=2, protocol="gtot", progress=False),
+    )
     assert all(r.status == "done" for r in res.results)
     ov = json.loads((out / "report.json").read_text())["overall"]["meanshift"]
     assert ov["pooled_frames"] == 48 and 0 <= ov["mpr"] <= 1 and "p20" not in ov
@@ -108,7 +141,12 @@ def test_batch_cli_errors_are_one_line(tmp_path, capsys):
     assert main(["batch", str(tmp_path / "empty"), "--out", str(tmp_path / "o")]) == 1
     assert "no sequence folders" in capsys.readouterr().err
     tiny_pair(tmp_path / "one")
-    assert main(["batch", str(tmp_path / "one"), "--out", str(tmp_path / "o"), "--trackers", "nosuch"]) == 1
+    assert (
+        main(
+            ["batch", str(tmp_path / "one"), "--out", str(tmp_path / "o"), "--trackers", "nosuch"]
+        )
+        == 1
+    )
     assert "unknown tracker 'nosuch'" in capsys.readouterr().err
 
 
@@ -122,23 +160,45 @@ def _free_port() -> int:
 def dask_cluster(tmp_path):
     """A real ``dask scheduler`` and two ``dask worker`` processes on loopback."""
     pytest.importorskip("distributed")
-    dask = str(Path(sys.executable).with_name("dask"))  # the environment running the tests, not PATH's
+    dask = str(
+        Path(sys.executable).with_name("dask")
+    )  # the environment running the tests, not PATH's
     if not Path(dask).exists():
         dask = shutil.which("dask") or dask
     if not Path(dask).exists():
         pytest.skip("the dask command is not installed (pip install -e '.[cluster]')")
     port = _free_port()
     addr = f"tcp://127.0.0.1:{port}"
-    logs = [open(tmp_path / f"dask{i}.log", "w") for i in range(3)]  # noqa: SIM115
-    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                              stdout=logs[0], stderr=subprocess.STDOUT)]
+    logs = [open(tmp_path / f"dask{i}.log", "w") for i in range(3)]
+    procs = [
+        subprocess.Popen(
+            [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            stdout=logs[0],
+            stderr=subprocess.STDOUT,
+        )
+    ]
     try:
         from distributed import Client
 
         for i in (1, 2):
-            procs.append(subprocess.Popen([dask, "worker", addr, "--nthreads", "1", "--no-dashboard", "--name", f"w{i}",
-                                           "--local-directory", str(tmp_path / f"w{i}")],
-                                          stdout=logs[i], stderr=subprocess.STDOUT))
+            procs.append(
+                subprocess.Popen(
+                    [
+                        dask,
+                        "worker",
+                        addr,
+                        "--nthreads",
+                        "1",
+                        "--no-dashboard",
+                        "--name",
+                        f"w{i}",
+                        "--local-directory",
+                        str(tmp_path / f"w{i}"),
+                    ],
+                    stdout=logs[i],
+                    stderr=subprocess.STDOUT,
+                )
+            )
         deadline = time.time() + 60
         while True:
             try:
@@ -163,15 +223,31 @@ def dask_cluster(tmp_path):
 
 
 def test_dask_cluster_results_equal_a_local_run(archive, tmp_path, dask_cluster):
-    local = run_batch(archive, tmp_path / "local", BatchOptions(trackers=("dual",), workers=2, progress=False))
+    local = run_batch(
+        archive, tmp_path / "local", BatchOptions(trackers=("dual",), workers=2, progress=False)
+    )
     assert all(r.status == "done" for r in local.results)
     for ship in (False, True):
         out = tmp_path / f"dask-{ship}"
-        res = run_batch(archive, out, BatchOptions(trackers=("dual",), scheduler=dask_cluster, ship_frames=ship,
-                                                   progress=False))
-        assert [r.status for r in res.results] == ["done", "done", "done"], [r.error for r in res.results]
+        res = run_batch(
+            archive,
+            out,
+            BatchOptions(
+                trackers=("dual",), scheduler=dask_cluster, ship_frames=ship, progress=False
+            ),
+        )
+        assert [r.status for r in res.results] == ["done", "done", "done"], [
+            r.error for r in res.results
+        ]
         for name in ("a", "b", "group/c"):
-            assert (out / name / "tracks.csv").read_text() == (tmp_path / "local" / name / "tracks.csv").read_text()
+            assert (out / name / "tracks.csv").read_text() == (
+                tmp_path / "local" / name / "tracks.csv"
+            ).read_text()
             assert (out / name / "run.rrd").stat().st_size > 0
         rep = json.loads((out / "report.json").read_text())
-        assert rep["overall"]["dual"]["p20"] == json.loads((tmp_path / "local" / "report.json").read_text())["overall"]["dual"]["p20"]
+        assert (
+            rep["overall"]["dual"]["p20"]
+            == json.loads((tmp_path / "local" / "report.json").read_text())["overall"]["dual"][
+                "p20"
+            ]
+        )

@@ -10,15 +10,23 @@ def test_bench_table_and_json(scene, tmp_path):
     rows = run_bench([seq], ["meanshift", "camshift"], json_path=tmp_path / "b.json")
     assert [r["tracker"] for r in rows] == ["meanshift", "camshift"]
     for r in rows:
-        assert r["frames"] == 32 and r["fps_decode"] > 0 and r["fps_tracking"] > 0 and r["fps_end_to_end"] > 0
+        assert (
+            r["frames"] == 32
+            and r["fps_decode"] > 0
+            and r["fps_tracking"] > 0
+            and r["fps_end_to_end"] > 0
+        )
         assert r["fps_tracking_cpu"] > 0
         assert 0 <= r["p20"] <= 1 and 0 <= r["auc"] <= 1 and r["end_to_end_vs_decode"] > 0
     assert "camshift" in rows[0]["speed_vs_peers"] and "camshift" in rows[0]["speed_vs_peers_cpu"]
     cpu = [r["fps_tracking_cpu"] for r in rows]
     assert rows[0]["speed_vs_peers_cpu"]["camshift"] == round(cpu[0] / cpu[1], 2)
     table = format_table(rows)
-    assert ("| sequence | tracker | P@20 | AUC | fps_tracking | fps_tracking_cpu | fps_end_to_end | fps_decode "
-            "| e2e/decode | e2e/min(trk,dec) |") in table
+    assert (
+        "| sequence | tracker | P@20 | AUC | fps_tracking | fps_tracking_cpu | fps_end_to_end | "
+        "fps_decode "
+        "| e2e/decode | e2e/min(trk,dec) |"
+    ) in table
     assert json.loads((tmp_path / "b.json").read_text())["rows"][1]["tracker"] == "camshift"
 
 
@@ -39,13 +47,23 @@ def test_bench_repeat_reports_the_kept_runs_ratio_and_stages(scene, monkeypatch)
 
     import pipeline.bench as B
 
-    runs = iter([(100.0, 50.0, 0.3), (300.0, 120.0, 0.1), (200.0, 150.0, 0.2)])  # fps, e2e, stage seconds
+    runs = iter(
+        [(100.0, 50.0, 0.3), (300.0, 120.0, 0.1), (200.0, 150.0, 0.2)]
+    )  # fps, e2e, stage seconds
 
     def fake_run(seq, opts):
         fps, e2e, sec = next(runs)
-        return types.SimpleNamespace(summary={"fps_tracking": fps, "fps_end_to_end": e2e, "complete": True,
-                                              "metrics": {"p20": 1.0, "auc": 0.8}, "stage_seconds": {"x": sec}},
-                                     error=None, interrupted=False)
+        return types.SimpleNamespace(
+            summary={
+                "fps_tracking": fps,
+                "fps_end_to_end": e2e,
+                "complete": True,
+                "metrics": {"p20": 1.0, "auc": 0.8},
+                "stage_seconds": {"x": sec},
+            },
+            error=None,
+            interrupted=False,
+        )
 
     monkeypatch.setattr(B, "run_track", fake_run)
     monkeypatch.setattr(B, "decode_rate", lambda *a, **k: (600.0, 32))
@@ -80,7 +98,9 @@ def test_bench_targets_rejects_unknown_counts(capsys):
 def test_bench_random_prints_the_distribution_and_attributes(tmp_path, capsys):
     from pipeline.bench import format_distribution, run_random_bench
 
-    res = run_random_bench(seeds=range(1, 3), trackers=["meanshift"], out=tmp_path, json_path=tmp_path / "r.json")
+    res = run_random_bench(
+        seeds=range(1, 3), trackers=["meanshift"], out=tmp_path, json_path=tmp_path / "r.json"
+    )
     d = res["distribution"]["meanshift"]
     p20 = [r["p20"] for r in res["rows"]]
     assert d["scenes"] == 2 and res["seeds"] == [1, 2]
@@ -93,7 +113,9 @@ def test_bench_random_prints_the_distribution_and_attributes(tmp_path, capsys):
     # a second run reuses the generated scenes
     before = (tmp_path / "scenes" / "random-0001" / "visible" / "00001v.jpg").stat().st_mtime_ns
     run_random_bench(seeds=range(1, 2), trackers=["meanshift"], out=tmp_path)
-    assert (tmp_path / "scenes" / "random-0001" / "visible" / "00001v.jpg").stat().st_mtime_ns == before
+    assert (
+        tmp_path / "scenes" / "random-0001" / "visible" / "00001v.jpg"
+    ).stat().st_mtime_ns == before
 
 
 def test_bench_random_rejects_bad_options(capsys):
@@ -106,8 +128,9 @@ def test_bench_random_rejects_bad_options(capsys):
 
 
 def test_the_cpu_rate_counts_only_the_trackers_own_work(scene, monkeypatch, tmp_path):
-    """A tracker that waits (a sleep: wall time, no CPU) 20 ms a frame: its tracking rate is at most 50 frames/s, its
-    rate in CPU time far higher; the waiting is what the reader and writer threads cost a tracker beside them."""
+    """A tracker that waits (a sleep: wall time, no CPU) 20 ms a frame: its tracking rate is at
+    most 50 frames/s, its rate in CPU time far higher; the waiting is what the reader and writer
+    threads cost a tracker beside them."""
     import time
 
     from pipeline.run import RunOptions, run_track
@@ -120,6 +143,10 @@ def test_the_cpu_rate_counts_only_the_trackers_own_work(scene, monkeypatch, tmp_
         return slow_step(self, frames)
 
     monkeypatch.setattr(base.FunctionalEngine, "step", waiting)
-    s = run_track(scene("pole-fast"), RunOptions(tracker="meanshift", out_dir=tmp_path / "r", rrd=False, plots=False,
-                                                  progress=False)).summary
+    s = run_track(
+        scene("pole-fast"),
+        RunOptions(
+            tracker="meanshift", out_dir=tmp_path / "r", rrd=False, plots=False, progress=False
+        ),
+    ).summary
     assert s["fps_tracking"] <= 50 and s["fps_tracking_cpu"] > 3 * s["fps_tracking"]

@@ -1,4 +1,5 @@
-"""The CLI's contract: one line and exit 1 for every bad input, 130 when interrupted, valid outputs."""
+"""The CLI's contract: one line and exit 1 for every bad input, 130 when interrupted, valid
+outputs."""
 
 from __future__ import annotations
 
@@ -51,14 +52,18 @@ def test_unrecognised_layout(tmp_path, capsys):
 def test_frame_counts_differ(tmp_path, capsys):
     write_frames(tmp_path / "s" / "visible", 4)
     write_frames(tmp_path / "s" / "infrared", 3, color=False)
-    rc, _, err = _run(["track", tmp_path / "s", "--init", "10,10,10,10", "--out", tmp_path / "o"], capsys)
+    rc, _, err = _run(
+        ["track", tmp_path / "s", "--init", "10,10,10,10", "--out", tmp_path / "o"], capsys
+    )
     _assert_one_line_error(rc, err, "different frame counts")
 
 
 def test_frame_sizes_differ(tmp_path, capsys):
     write_frames(tmp_path / "s" / "visible", 3, size=(64, 48))
     write_frames(tmp_path / "s" / "infrared", 3, size=(60, 48), color=False)
-    rc, _, err = _run(["track", tmp_path / "s", "--init", "10,10,10,10", "--out", tmp_path / "o"], capsys)
+    rc, _, err = _run(
+        ["track", tmp_path / "s", "--init", "10,10,10,10", "--out", tmp_path / "o"], capsys
+    )
     _assert_one_line_error(rc, err, "different frame sizes: visible 64x48")
 
 
@@ -70,7 +75,9 @@ def test_malformed_truth(tmp_path, capsys):
 
 
 def test_init_outside_frame(tmp_path, capsys):
-    rc, _, err = _run(["track", _tiny(tmp_path / "s"), "--init", "500,10,10,10", "--out", tmp_path / "o"], capsys)
+    rc, _, err = _run(
+        ["track", _tiny(tmp_path / "s"), "--init", "500,10,10,10", "--out", tmp_path / "o"], capsys
+    )
     _assert_one_line_error(rc, err, "lies outside the 64x48 frame")
     assert not (tmp_path / "o").exists()  # nothing written for a run that cannot start
 
@@ -83,12 +90,24 @@ def test_empty_sequence(tmp_path, capsys):
 
 
 def test_unknown_tracker(tmp_path, capsys):
-    rc, _, err = _run(["track", _tiny(tmp_path / "s"), "--tracker", "nosuch", "--out", tmp_path / "o"], capsys)
+    rc, _, err = _run(
+        ["track", _tiny(tmp_path / "s"), "--tracker", "nosuch", "--out", tmp_path / "o"], capsys
+    )
     _assert_one_line_error(rc, err, "unknown tracker 'nosuch'; available: ")
 
 
 def test_bad_set_and_bad_option(tmp_path, capsys):
-    rc, _, err = _run(["track", _tiny(tmp_path / "s"), "--set", "meanshift.max_iterations=-1", "--out", tmp_path / "o"], capsys)
+    rc, _, err = _run(
+        [
+            "track",
+            _tiny(tmp_path / "s"),
+            "--set",
+            "meanshift.max_iterations=-1",
+            "--out",
+            tmp_path / "o",
+        ],
+        capsys,
+    )
     _assert_one_line_error(rc, err, "meanshift.max_iterations")
     with pytest.raises(SystemExit) as ex:
         main(["track", "--no-such-option"])
@@ -100,19 +119,28 @@ def test_existing_run_folder_needs_force(tmp_path, capsys):
     assert _run(["track", root, "--tracker", "meanshift", "--out", tmp_path / "o"], capsys)[0] == 0
     rc, _, err = _run(["track", root, "--tracker", "meanshift", "--out", tmp_path / "o"], capsys)
     _assert_one_line_error(rc, err, "--force")
-    assert _run(["track", root, "--tracker", "meanshift", "--out", tmp_path / "o", "--force"], capsys)[0] == 0
+    assert (
+        _run(
+            ["track", root, "--tracker", "meanshift", "--out", tmp_path / "o", "--force"], capsys
+        )[0]
+        == 0
+    )
 
 
 def test_unreadable_frame_mid_run_keeps_results(tmp_path, capsys):
     root = _tiny(tmp_path / "s", n=8)
     (root / "visible" / "00006.jpg").write_bytes(b"\xff\xd8 broken")
     out = tmp_path / "o"
-    rc, stdout, err = _run(["track", root, "--tracker", "meanshift", "--out", out], capsys)
+    rc, _stdout, err = _run(["track", root, "--tracker", "meanshift", "--out", out], capsys)
     _assert_one_line_error(rc, err, "unreadable frame 6")
     tracks = (out / "tracks.csv").read_text().splitlines()
     assert [int(r.split(",")[0]) for r in tracks] == [1, 2, 3, 4, 5]
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["complete"] is False and summary["frames"] == 5 and "unreadable frame 6" in summary["error"]
+    assert (
+        summary["complete"] is False
+        and summary["frames"] == 5
+        and "unreadable frame 6" in summary["error"]
+    )
     t = rows(open_store(out / "run.rrd"), "/visible/targets", ["Boxes2D:centers"])
     assert sorted(set(t["frame"].to_pylist())) == [1, 2, 3, 4, 5]
 
@@ -120,7 +148,9 @@ def test_unreadable_frame_mid_run_keeps_results(tmp_path, capsys):
 def test_evaluate_json(tmp_path, capsys):
     root = _tiny(tmp_path / "s")
     res = tmp_path / "res.txt"
-    res.write_text("\n".join(f"{10 + i},10,10,10" for i in range(6)) + "\n")  # a per-frame box file
+    res.write_text(
+        "\n".join(f"{10 + i},10,10,10" for i in range(6)) + "\n"
+    )  # a per-frame box file
     rc, out, _ = _run(["evaluate", root, res, "--json"], capsys)
     assert rc == 0
     m = json.loads(out)
@@ -133,8 +163,19 @@ def test_synth_list(capsys):
     rc, out, _ = _run(["synth", "--list"], capsys)
     names = [ln.split()[0] for ln in out.splitlines()]
     assert rc == 0 and len(names) >= 8
-    for required in ("dusk", "shadows", "approach", "lookalike", "hot-distractor", "crossover", "occluder", "fast",
-                     "crossing2", "crossing3", "meet-part"):
+    for required in (
+        "dusk",
+        "shadows",
+        "approach",
+        "lookalike",
+        "hot-distractor",
+        "crossover",
+        "occluder",
+        "fast",
+        "crossing2",
+        "crossing3",
+        "meet-part",
+    ):
         assert required in names
 
 
@@ -163,8 +204,23 @@ def test_ctrl_c_leaves_valid_outputs(tmp_path):
     root = _long_sequence(tmp_path / "s")
     out = tmp_path / "o"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    p = subprocess.Popen([sys.executable, "-m", "pipeline", "track", str(root), "--tracker", "mil", "--out", str(out)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "track",
+            str(root),
+            "--tracker",
+            "mil",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     deadline = time.time() + 120
     while time.time() < deadline:
         f = out / "tracks.csv"
@@ -180,23 +236,48 @@ def test_ctrl_c_leaves_valid_outputs(tmp_path):
     assert summary["complete"] is False and 15 <= n < 400
     assert len((out / "tracks.csv").read_text().splitlines()) == n
     assert len((out / "targets.csv").read_text().splitlines()) == n + 1
-    verify = subprocess.run([str(Path(sys.executable).parent / "rerun"), "rrd", "verify", str(out / "run.rrd")],
-                            capture_output=True, text=True, timeout=120)
+    verify = subprocess.run(
+        [str(Path(sys.executable).parent / "rerun"), "rrd", "verify", str(out / "run.rrd")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert verify.returncode == 0, verify.stderr
     store = open_store(out / "run.rrd")
     assert boxes_at(store, "/visible/targets", n) is not None
 
 
 def test_synth_random_one_and_a_set(tmp_path, capsys):
-    rc, out, _ = _run(["synth", "random", tmp_path / "one", "--seed", "4", "--frames", "30"], capsys)
+    rc, _, _ = _run(["synth", "random", tmp_path / "one", "--seed", "4", "--frames", "30"], capsys)
     assert rc == 0 and (tmp_path / "one" / "scene.json").is_file()
-    rc, out, _ = _run(["synth", "random", tmp_path / "set", "--seeds", "5-6", "--frames", "30", "--targets", "2"], capsys)
-    assert rc == 0 and sorted(p.name for p in (tmp_path / "set").iterdir()) == ["random-0005", "random-0006"]
-    assert len(json.loads((tmp_path / "set" / "random-0005" / "scene.json").read_text())["targets"]) == 2
-    for argv, match in ((["synth", "random", tmp_path / "x", "--seed", "-1"], "non-negative"),
-                        (["synth", "random", tmp_path / "x", "--targets", "9"], "--targets"),
-                        (["synth", "random", tmp_path / "x", "--size", "big"], "--size"),
-                        (["synth", "crossing2", tmp_path / "x", "--seeds", "1-2"], "synth random")):
+    rc, _out, _ = _run(
+        [
+            "synth",
+            "random",
+            tmp_path / "set",
+            "--seeds",
+            "5-6",
+            "--frames",
+            "30",
+            "--targets",
+            "2",
+        ],
+        capsys,
+    )
+    assert rc == 0 and sorted(p.name for p in (tmp_path / "set").iterdir()) == [
+        "random-0005",
+        "random-0006",
+    ]
+    assert (
+        len(json.loads((tmp_path / "set" / "random-0005" / "scene.json").read_text())["targets"])
+        == 2
+    )
+    for argv, match in (
+        (["synth", "random", tmp_path / "x", "--seed", "-1"], "non-negative"),
+        (["synth", "random", tmp_path / "x", "--targets", "9"], "--targets"),
+        (["synth", "random", tmp_path / "x", "--size", "big"], "--size"),
+        (["synth", "crossing2", tmp_path / "x", "--seeds", "1-2"], "synth random"),
+    ):
         rc, _, err = _run(argv, capsys)
         _assert_one_line_error(rc, err, match)
 
@@ -204,7 +285,7 @@ def test_synth_random_one_and_a_set(tmp_path, capsys):
 def test_visible_only_rgbt234_folder_runs(tmp_path, capsys):
     write_frames(tmp_path / "s" / "visible", 8)
     write_boxes(tmp_path / "s" / "visible.txt", 8)
-    rc, out, err = _run(["track", tmp_path / "s", "--out", tmp_path / "run", "--no-rrd"], capsys)
+    rc, _out, err = _run(["track", tmp_path / "s", "--out", tmp_path / "run", "--no-rrd"], capsys)
     assert rc == 0, err
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["channels"] == ["visible"] and s["frames"] == 8 and s["metrics"]["p20"] == 1.0

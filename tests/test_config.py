@@ -17,7 +17,9 @@ def _sections():
 def test_every_field_documented(section):
     doc = type(section).__doc__ or ""
     for f in dataclasses.fields(section):
-        assert f"{f.name} :" in doc, f"{type(section).__name__}.{f.name} is not documented in its docstring"
+        assert f"{f.name} :" in doc, (
+            f"{type(section).__name__}.{f.name} is not documented in its docstring"
+        )
 
 
 def test_pipeline_sections_documented():
@@ -27,7 +29,10 @@ def test_pipeline_sections_documented():
 
 
 def test_set_overrides_coerce_types():
-    cfg = load_config(None, ["meanshift.max_iterations=30", "meanshift.epsilon_px=0.25", "opencv.channel=infrared"])
+    cfg = load_config(
+        None,
+        ["meanshift.max_iterations=30", "meanshift.epsilon_px=0.25", "opencv.channel=infrared"],
+    )
     assert cfg.meanshift.max_iterations == 30 and cfg.meanshift.epsilon_px == 0.25
     assert cfg.opencv.channel == "infrared"
     assert PipelineConfig().meanshift.max_iterations == 20  # defaults untouched (frozen)
@@ -40,15 +45,18 @@ def test_toml_then_set(tmp_path):
     assert (cfg.meanshift.max_iterations, cfg.meanshift.scale_step) == (9, 0.05)
 
 
-@pytest.mark.parametrize("item, match", [
-    ("meanshift.max_iterations=0", "max_iterations"),
-    ("meanshift.max_iterations=2.5", "integer"),
-    ("meanshift.nope=1", "unknown parameter meanshift.nope"),
-    ("nosuch.x=1", "unknown config section"),
-    ("meanshift=3", "section.param=value"),
-    ("opencv.channel=thermal", "opencv.channel"),
-    ("histogram.hue_bins=1", "hue_bins"),
-])
+@pytest.mark.parametrize(
+    "item, match",
+    [
+        ("meanshift.max_iterations=0", "max_iterations"),
+        ("meanshift.max_iterations=2.5", "integer"),
+        ("meanshift.nope=1", "unknown parameter meanshift.nope"),
+        ("nosuch.x=1", "unknown config section"),
+        ("meanshift=3", "section.param=value"),
+        ("opencv.channel=thermal", "opencv.channel"),
+        ("histogram.hue_bins=1", "hue_bins"),
+    ],
+)
 def test_bad_values_rejected(item, match):
     with pytest.raises(ConfigError, match=match):
         load_config(None, [item])

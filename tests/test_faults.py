@@ -1,8 +1,9 @@
-"""Faults a user meets, run as a user would (the CLI in a subprocess): every one leaves valid outputs.
+"""Faults a user meets, run as a user would (the CLI in a subprocess): every one leaves valid
+outputs.
 
-After each, ``summary.json`` says how many frames ``tracks.csv`` and ``targets.csv`` hold, the CSVs end with a
-whole row, and the recording verifies (a SIGKILLed run's recording lacks its footer but a stream reader reads
-every frame the CSVs hold).
+After each, ``summary.json`` says how many frames ``tracks.csv`` and ``targets.csv`` hold, the CSVs
+end with a whole row, and the recording verifies (a SIGKILLed run's recording lacks its footer but
+a stream reader reads every frame the CSVs hold).
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ PY = sys.executable
 
 
 def _cli(*args: object, timeout: float = 120) -> subprocess.CompletedProcess:
-    """Run the CLI; one that hangs fails the test with every thread's Python stack (faulthandler on SIGABRT)."""
+    """Run the CLI; one that hangs fails the test with every thread's Python stack (faulthandler on
+    SIGABRT)."""
     cmd = [PY, "-X", "faulthandler", "-m", "pipeline", *map(str, args)]
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -36,17 +38,26 @@ def _cli(*args: object, timeout: float = 120) -> subprocess.CompletedProcess:
         except subprocess.TimeoutExpired:
             p.kill()
             out, err = p.communicate()
-        pytest.fail(f"{' '.join(map(str, args))} still running after {timeout:.0f} s; its stacks:\n{err[-6000:]}")
+        pytest.fail(
+            f"{' '.join(map(str, args))} still running after {timeout:.0f} s; its "
+            f"stacks:\n{err[-6000:]}"
+        )
     return subprocess.CompletedProcess(cmd, p.returncode, out, err)
 
 
 def _start(*args: object) -> subprocess.Popen:
-    return subprocess.Popen([PY, "-m", "pipeline", *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    return subprocess.Popen(
+        [PY, "-m", "pipeline", *map(str, args)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _one_error_line(err: str, *needles: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("dualtrack: warning:")]
+    lines = [
+        ln for ln in err.splitlines() if ln.strip() and not ln.startswith("dualtrack: warning:")
+    ]
     assert len(lines) == 1, err
     assert lines[0].startswith("dualtrack: error: "), lines[0]
     for n in needles:
@@ -72,8 +83,12 @@ def _csv_frames(run: Path) -> int:
 
 
 def _verify(rrd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([str(Path(PY).parent / "rerun"), "rrd", "verify", str(rrd)], capture_output=True, text=True,
-                          timeout=120)
+    return subprocess.run(
+        [str(Path(PY).parent / "rerun"), "rrd", "verify", str(rrd)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def _rrd_frames(rrd: Path) -> set[int]:
@@ -89,10 +104,13 @@ def _tiny(root: Path, n: int = 12) -> Path:
 
 @pytest.fixture(scope="module")
 def long_scene(tmp_path_factory) -> Path:
-    """A 400-frame random scene: long enough under MIL (a few tens of frames per second) to be stopped mid-run."""
+    """A 400-frame random scene: long enough under MIL (a few tens of frames per second) to be
+    stopped mid-run."""
     from pipeline.synthetic import synthesize_random
 
-    return synthesize_random(tmp_path_factory.mktemp("long") / "seq", 3, targets=1, frames=400, progress=False)
+    return synthesize_random(
+        tmp_path_factory.mktemp("long") / "seq", 3, targets=1, frames=400, progress=False
+    )
 
 
 def _wait_frames(run: Path, frames: int, proc: subprocess.Popen, timeout: float = 120) -> None:
@@ -140,7 +158,9 @@ def test_detect_on_frames_without_detections(tmp_path):
 def test_full_disk_leaves_whole_rows_and_a_true_summary(tmp_path, scene):
     mnt = tmp_path / "small"
     mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=600k", "tmpfs", str(mnt)], capture_output=True).returncode:
+    if subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=600k", "tmpfs", str(mnt)], capture_output=True
+    ).returncode:
         pytest.skip("cannot mount a small tmpfs here (needs root or a mount namespace)")
     try:
         run = mnt / "run"
@@ -149,7 +169,9 @@ def test_full_disk_leaves_whole_rows_and_a_true_summary(tmp_path, scene):
         _one_error_line(r.stderr, str(run))
         s = _summary(run)
         assert s["complete"] is False and "error" in s
-        assert s["frames"] == _csv_frames(run) and s["frames"] % 16 == 0  # the last checkpoint that fitted
+        assert (
+            s["frames"] == _csv_frames(run) and s["frames"] % 16 == 0
+        )  # the last checkpoint that fitted
     finally:
         subprocess.run(["umount", str(mnt)], capture_output=True)
 
@@ -160,7 +182,7 @@ def test_sigterm_and_ctrl_c_mid_run_close_every_output(tmp_path, long_scene, sig
     p = _start("track", long_scene, "--tracker", "mil", "--out", run)
     _wait_frames(run, 32, p)
     p.send_signal(sig)
-    out, err = p.communicate(timeout=120)
+    _out, err = p.communicate(timeout=120)
     assert p.returncode == 130, err
     s = _summary(run)
     assert s["complete"] is False and s.get("interrupted") is True
@@ -177,9 +199,13 @@ def test_sigkill_leaves_a_summary_true_to_the_files(tmp_path, long_scene):
     p.communicate(timeout=60)
     s = _summary(run)
     assert s["complete"] is False and s["frames"] >= 48
-    assert s["frames"] == _csv_frames(run)  # rows are written at the checkpoints summary.json records
+    assert s["frames"] == _csv_frames(
+        run
+    )  # rows are written at the checkpoints summary.json records
     assert _verify(run / "run.rrd").returncode != 0  # no footer after a kill ...
-    assert set(range(1, s["frames"] + 1)) <= _rrd_frames(run / "run.rrd")  # ... but every frame the CSVs hold
+    assert set(range(1, s["frames"] + 1)) <= _rrd_frames(
+        run / "run.rrd"
+    )  # ... but every frame the CSVs hold
 
 
 def test_second_ctrl_c_during_finalisation_does_not_lose_the_summary(tmp_path, long_scene):
@@ -194,7 +220,11 @@ def test_second_ctrl_c_during_finalisation_does_not_lose_the_summary(tmp_path, l
     p.communicate(timeout=120)
     assert p.returncode == 130
     s = _summary(run)
-    assert s.get("interrupted") is True and s["frames"] == _csv_frames(run) and s["metrics"] is not None
+    assert (
+        s.get("interrupted") is True
+        and s["frames"] == _csv_frames(run)
+        and s["metrics"] is not None
+    )
     assert _verify(run / "run.rrd").returncode == 0
 
 
@@ -211,7 +241,9 @@ def _children(marker: str) -> list[int]:
     return out
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signals are Linux's")
+@pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="parent-death signals are Linux's"
+)
 def test_a_killed_batch_leaves_no_orphan_and_a_report(tmp_path, long_scene):
     import shutil
 
@@ -249,12 +281,15 @@ def test_batch_timeout_stops_the_child_with_sigterm_first(tmp_path, long_scene):
     assert _verify(out / "b" / "run.rrd").returncode == 0
 
 
-@pytest.mark.parametrize("args, needles", [
-    (["--gt-base", "7"], ["--gt-base must be 0 or 1"]),
-    (["--frames", "0"], ["--frames must be at least 1"]),
-    (["--frames", "-5"], ["--frames must be at least 1"]),
-    (["--init", "3,3,1,1"], ["too small to track", "1x1 px"]),
-])
+@pytest.mark.parametrize(
+    "args, needles",
+    [
+        (["--gt-base", "7"], ["--gt-base must be 0 or 1"]),
+        (["--frames", "0"], ["--frames must be at least 1"]),
+        (["--frames", "-5"], ["--frames must be at least 1"]),
+        (["--init", "3,3,1,1"], ["too small to track", "1x1 px"]),
+    ],
+)
 def test_rejected_track_options(tmp_path, args, needles):
     seq = _tiny(tmp_path / "s", 4)
     r = _cli("track", seq, "--out", tmp_path / "run", *args)
@@ -268,8 +303,14 @@ def test_rejected_bench_batch_and_synth_options(tmp_path):
     cases = [
         (["bench", seq, "--trackers", ","], ["--trackers names no tracker"]),
         (["bench", seq, "--json", tmp_path / "folder"], ["is a folder"]),
-        (["batch", tmp_path, "--out", tmp_path / "o", "--timeout", "-1"], ["--timeout must be a positive"]),
-        (["batch", tmp_path, "--out", tmp_path / "o2", "--set", "dual.nope=1"], ["unknown parameter dual.nope"]),
+        (
+            ["batch", tmp_path, "--out", tmp_path / "o", "--timeout", "-1"],
+            ["--timeout must be a positive"],
+        ),
+        (
+            ["batch", tmp_path, "--out", tmp_path / "o2", "--set", "dual.nope=1"],
+            ["unknown parameter dual.nope"],
+        ),
         (["synth", "random", tmp_path / "x", "--seed", "-1"], ["non-negative"]),
         (["synth", "crossing2", seq / "visible.txt"], ["is not a folder"]),
         (["track", seq, "--config", tmp_path / "folder"], ["is a folder"]),
@@ -301,7 +342,9 @@ def test_output_under_a_file_and_read_only_folders(tmp_path):
     _one_error_line(r.stderr, "is a file")
     ro = tmp_path / "ro"
     ro.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(ro)], capture_output=True).returncode:
+    if subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(ro)], capture_output=True
+    ).returncode:
         pytest.skip("cannot mount a read-only tmpfs here")
     try:
         r = _cli("track", seq, "--out", ro / "run")
@@ -314,11 +357,15 @@ def test_row_count_mismatches_and_duplicate_results_are_warnings(tmp_path):
     seq = _tiny(tmp_path / "s", 6)
     (seq / "visible.txt").write_text("10,10,10,10\n" * 4)  # 4 rows for 6 frames
     res = tmp_path / "res.csv"
-    res.write_text("1,1,11,11,10,10,1,-1,-1,-1\n1,1,11,11,10,10,1,-1,-1,-1\n2,1,12,11,10,10,1,-1,-1,-1\n")
+    res.write_text(
+        "1,1,11,11,10,10,1,-1,-1,-1\n1,1,11,11,10,10,1,-1,-1,-1\n2,1,12,11,10,10,1,-1,-1,-1\n"
+    )
     r = _cli("evaluate", seq, res, "--json")
     assert r.returncode == 0, r.stderr
     warnings = [ln for ln in r.stderr.splitlines() if ln.startswith("dualtrack: warning:")]
-    assert any("4 rows for 6 frames" in w for w in warnings) and any("duplicate (frame, id)" in w for w in warnings)
+    assert any("4 rows for 6 frames" in w for w in warnings) and any(
+        "duplicate (frame, id)" in w for w in warnings
+    )
 
 
 def test_bench_reports_failed_sequences_and_prints_the_rest(tmp_path):
@@ -327,4 +374,6 @@ def test_bench_reports_failed_sequences_and_prints_the_rest(tmp_path):
     (bad / "visible" / "00003.jpg").write_bytes(b"")
     r = _cli("bench", bad, good, "--trackers", "meanshift")
     assert r.returncode == 1
-    assert "| good | meanshift |" in r.stdout and "1 failed:" in r.stdout and "00003.jpg" in r.stdout
+    assert (
+        "| good | meanshift |" in r.stdout and "1 failed:" in r.stdout and "00003.jpg" in r.stdout
+    )

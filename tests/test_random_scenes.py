@@ -1,4 +1,5 @@
-"""The random scene family: deterministic by seed, varied, exact truth, attributes, the dev/test split."""
+"""The random scene family: deterministic by seed, varied, exact truth, attributes, the dev/test
+split."""
 
 from __future__ import annotations
 
@@ -10,8 +11,15 @@ import pytest
 from pipeline.errors import InputError
 from pipeline.io.sequence import open_sequence
 from pipeline.synthetic import DISTRACTOR_ID_BASE, synthesize_random
-from pipeline.synthetic.family import (ATTRIBUTES, DEV_SEEDS, DISTRACTOR_ROLES, TEST_SEEDS, draw_scene, parse_seed_range,
-                                       parse_target_count)
+from pipeline.synthetic.family import (
+    ATTRIBUTES,
+    DEV_SEEDS,
+    DISTRACTOR_ROLES,
+    TEST_SEEDS,
+    draw_scene,
+    parse_seed_range,
+    parse_target_count,
+)
 from pipeline.synthetic.scene import Renderer
 
 
@@ -36,18 +44,47 @@ def test_every_event_kind_occurs_within_fifty_seeds():
     for seed in range(50):
         p = draw_scene(seed).params
         for e in p["events"]:
-            seen.add(e["event"] + (f"/{e['kind']}" if e["event"] in ("occluder", "shadow") else ""))
+            seen.add(
+                e["event"] + (f"/{e['kind']}" if e["event"] in ("occluder", "shadow") else "")
+            )
         for t in p["targets"]:
             seen |= {f"kind/{t['kind']}", f"motion/{t['motion']}", f"scale/{t['scale']}"}
             seen |= {k for k in ("entering", "crossover", "crosses_target") if t.get(k)}
             seen |= {"leaving"} if t["leaves_at"] else set()
         seen |= {"jitter"} if "camera_jitter_px" in p else set()
         seen.add(f"targets/{len(p['targets'])}")
-    wanted = {"crossing", "cold-look-alike", "warm-distractor", "companion", "occluder/full", "occluder/low-wall",
-              "occluder/pole", "shadow/building", "shadow/tree", "shadow/moving", "illumination-ramp", "flicker",
-              "kind/person", "kind/cyclist", "kind/car", "motion/straight", "motion/curved", "motion/stopping",
-              "motion/turning", "motion/fast", "scale/approach", "scale/recede", "entering", "leaving", "crossover",
-              "crosses_target", "jitter", "targets/1", "targets/2", "targets/3"}
+    wanted = {
+        "crossing",
+        "cold-look-alike",
+        "warm-distractor",
+        "companion",
+        "occluder/full",
+        "occluder/low-wall",
+        "occluder/pole",
+        "shadow/building",
+        "shadow/tree",
+        "shadow/moving",
+        "illumination-ramp",
+        "flicker",
+        "kind/person",
+        "kind/cyclist",
+        "kind/car",
+        "motion/straight",
+        "motion/curved",
+        "motion/stopping",
+        "motion/turning",
+        "motion/fast",
+        "scale/approach",
+        "scale/recede",
+        "entering",
+        "leaving",
+        "crossover",
+        "crosses_target",
+        "jitter",
+        "targets/1",
+        "targets/2",
+        "targets/3",
+    }
     assert wanted <= seen, wanted - seen
 
 
@@ -59,7 +96,9 @@ def test_drawn_ranges_hold():
             if a.target_id:
                 xs = np.array([a.path(t) for t in range(1, sc.n_frames + 1)])
                 speed = np.hypot(*np.diff(xs[:, :2], axis=0).T)
-                assert speed.max() <= 12.0 + 3.0 + 1e-6  # 12 px per frame, plus at most 3 of a bend towards a crossing
+                assert (
+                    speed.max() <= 12.0 + 3.0 + 1e-6
+                )  # 12 px per frame, plus at most 3 of a bend towards a crossing
                 assert 0.4 - 1e-9 <= xs[:, 2].min() and xs[:, 2].max() <= 3.0 + 1e-9
         shift = d.params["sensor"]["misregistration_px"]
         assert np.hypot(*shift) <= 3.0 + 1e-3
@@ -69,8 +108,9 @@ def test_drawn_ranges_hold():
 
 @pytest.mark.parametrize("seed", [3, 8, 21])
 def test_truth_is_the_box_of_the_drawn_silhouette(seed):
-    """Each target's own (amodal) alpha as drawn in the frame: its pixel box at alpha >= 0.5 is the visible truth;
-    moved by the drawn misregistration it is the infrared truth (1 px: the two are resampled separately)."""
+    """Each target's own (amodal) alpha as drawn in the frame: its pixel box at alpha >= 0.5 is the
+    visible truth; moved by the drawn misregistration it is the infrared truth (1 px: the two are
+    resampled separately)."""
     d = draw_scene(seed, n_frames=60)
     r = Renderer(d.scene, d.render_seed)
     dx, dy = d.scene.sensor.ir_shift_px
@@ -84,19 +124,29 @@ def test_truth_is_the_box_of_the_drawn_silhouette(seed):
             if box is None or m is None:
                 continue
             ys, xs = np.nonzero(m >= 0.5)
-            assert [xs.min(), ys.min(), xs.max() + 1 - xs.min(), ys.max() + 1 - ys.min()] == list(box)
+            assert [xs.min(), ys.min(), xs.max() + 1 - xs.min(), ys.max() + 1 - ys.min()] == list(
+                box
+            )
             ib = f.truth_infrared[tid]
-            if ib is not None and 4 < box[0] and box[0] + box[2] < d.scene.width - 4 and 4 < box[1] \
-                    and box[1] + box[3] < d.scene.height - 4:
-                np.testing.assert_allclose(ib, (box[0] + dx, box[1] + dy, box[2], box[3]), atol=1.0)
+            if (
+                ib is not None
+                and 4 < box[0]
+                and box[0] + box[2] < d.scene.width - 4
+                and 4 < box[1]
+                and box[1] + box[3] < d.scene.height - 4
+            ):
+                np.testing.assert_allclose(
+                    ib, (box[0] + dx, box[1] + dy, box[2], box[3]), atol=1.0
+                )
             checked += 1
     assert checked >= 5
 
 
 def test_truth_matches_the_warm_blob_in_the_infrared_frame():
-    """Independently of the renderer's masks: a warm, unoccluded person's blob in the IR frame (threshold at a fifth
-    of its contrast, below its coolest part) has the infrared truth box within 3 px per side: the IR silhouette's
-    edge is softened by 1 px and the optics blur up to 1.6 px, which a threshold this low reaches past the edge."""
+    """Independently of the renderer's masks: a warm, unoccluded person's blob in the IR frame
+    (threshold at a fifth of its contrast, below its coolest part) has the infrared truth box
+    within 3 px per side: the IR silhouette's edge is softened by 1 px and the optics blur up to
+    1.6 px, which a threshold this low reaches past the edge."""
     import cv2
 
     checked = 0
@@ -114,17 +164,26 @@ def test_truth_matches_the_warm_blob_in_the_infrared_frame():
             continue
         x, y, w, h = (int(v) for v in box)
         pad = 6
-        roi = cv2.GaussianBlur(f.infrared_float, (0, 0), 1.0)[max(y - pad, 0):y + h + pad, max(x - pad, 0):x + w + pad]
-        ring = np.concatenate([roi[:2].ravel(), roi[-2:].ravel(), roi[:, :2].ravel(), roi[:, -2:].ravel()])
-        mask = (roi > np.median(ring) + 0.2 * a.ir_contrast).astype(np.uint8)  # shoes (heat 0.4) included
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask)
+        roi = cv2.GaussianBlur(f.infrared_float, (0, 0), 1.0)[
+            max(y - pad, 0) : y + h + pad, max(x - pad, 0) : x + w + pad
+        ]
+        ring = np.concatenate(
+            [roi[:2].ravel(), roi[-2:].ravel(), roi[:, :2].ravel(), roi[:, -2:].ravel()]
+        )
+        mask = (roi > np.median(ring) + 0.2 * a.ir_contrast).astype(
+            np.uint8
+        )  # shoes (heat 0.4) included
+        n, _labels, stats, _ = cv2.connectedComponentsWithStats(mask)
         if n < 2:
             continue
         k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
         bx, by, bw, bh = stats[k, :4]
         bx, by = bx + max(x - pad, 0), by + max(y - pad, 0)
-        np.testing.assert_allclose([bx, by, bx + bw, by + bh], [box[0], box[1], box[0] + box[2], box[1] + box[3]],
-                                   atol=3.0)
+        np.testing.assert_allclose(
+            [bx, by, bx + bw, by + bh],
+            [box[0], box[1], box[0] + box[2], box[1] + box[3]],
+            atol=3.0,
+        )
         checked += 1
     assert checked >= 4
 
@@ -139,7 +198,11 @@ def test_written_truth_is_the_rendered_truth(tmp_path):
         for tid in f.truth_visible:
             for ch, tb in (("visible", f.truth_visible), ("infrared", f.truth_infrared)):
                 want = tb[tid]
-                got = seq.truth.boxes["visible"][tid][t - 1] if seq.truth.multi else seq.truth.boxes[ch][tid][t - 1]
+                got = (
+                    seq.truth.boxes["visible"][tid][t - 1]
+                    if seq.truth.multi
+                    else seq.truth.boxes[ch][tid][t - 1]
+                )
                 if seq.truth.multi and ch == "infrared":
                     continue  # a MOT gt.txt holds the visible truth for both channels
                 if want is None:
@@ -152,7 +215,12 @@ def test_files_attributes_and_reader(tmp_path):
     d = synthesize_random(tmp_path / "r", 8, frames=60)
     seq = open_sequence(d)
     meta = json.loads((d / "scene.json").read_text())
-    assert seq.layout == "rgbt234" and seq.n_frames == 60 and meta["seed"] == 8 and meta["family"] == "random"
+    assert (
+        seq.layout == "rgbt234"
+        and seq.n_frames == 60
+        and meta["seed"] == 8
+        and meta["family"] == "random"
+    )
     assert set(meta["frame_attributes"]["1"]) == set(ATTRIBUTES)
     assert set(meta["attributes"]) <= set(ATTRIBUTES)
     assert meta["params"]["targets"] and meta["params"]["sensor"]["jpeg_quality"]["visible"] >= 50
@@ -185,7 +253,9 @@ def test_target_count_is_honoured():
 
 
 def test_moving_objects_that_are_not_targets_are_distractor_rows_of_the_truth(tmp_path):
-    d = synthesize_random(tmp_path / "r", 1, targets=(2, 3), frames=60)  # seed 1 draws a crossing object
+    d = synthesize_random(
+        tmp_path / "r", 1, targets=(2, 3), frames=60
+    )  # seed 1 draws a crossing object
     drawn = draw_scene(1, (2, 3), n_frames=60)
     movers = [i for i, role in drawn.roles.items() if role in DISTRACTOR_ROLES]
     assert movers

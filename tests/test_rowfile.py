@@ -20,8 +20,8 @@ def test_rows_reach_the_file_only_at_checkpoints(tmp_path):
 
 @pytest.mark.parametrize("short", [0, 3])
 def test_a_write_of_nothing_is_a_full_disk_not_a_retry(tmp_path, monkeypatch, short):
-    """A write that writes nothing (after a short one, or at once) ends the checkpoint with OutputError instead of
-    looping forever; the file is truncated back to its last checkpoint."""
+    """A write that writes nothing (after a short one, or at once) ends the checkpoint with
+    OutputError instead of looping forever; the file is truncated back to its last checkpoint."""
     f = RowFile(tmp_path / "a.csv", header="frame,x")
     real = rowfile.os.write
     calls = []

@@ -1,4 +1,5 @@
-"""The reproduction studies in tools/ run, write the files their issues fix, and keep their findings."""
+"""The reproduction studies in tools/ run, write the files their issues fix, and keep their
+findings."""
 
 from __future__ import annotations
 
@@ -13,8 +14,13 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def run_tool(name: str, *args: str) -> None:
-    subprocess.run([sys.executable, str(ROOT / "tools" / name), *args], check=True, cwd=ROOT, capture_output=True,
-                   timeout=600)
+    subprocess.run(
+        [sys.executable, str(ROOT / "tools" / name), *args],
+        check=True,
+        cwd=ROOT,
+        capture_output=True,
+        timeout=600,
+    )
 
 
 def test_purity_study(tmp_path):
@@ -23,10 +29,16 @@ def test_purity_study(tmp_path):
     for mode in ("state", "image", "fused"):
         m = np.array(r[mode])
         assert m.shape == (4, 4)
-        np.testing.assert_allclose(m.sum(axis=1) + np.array(r["none"][mode]), 1.0, atol=1e-3)  # rows with "none" sum to 1
+        np.testing.assert_allclose(
+            m.sum(axis=1) + np.array(r["none"][mode]), 1.0, atol=1e-3
+        )  # rows with "none" sum to 1
     assert min(r["diagonal"]["fused"]) >= 0.95
-    assert np.mean(r["diagonal"]["state"]) <= 0.7  # as hard as the paper's (0.48 there; 0.54 over 50 runs here)
-    assert r["image"][0][1] >= 0.3 and r["image"][1][0] >= 0.3  # image alone confuses the look-alikes 1 and 2
+    assert (
+        np.mean(r["diagonal"]["state"]) <= 0.7
+    )  # as hard as the paper's (0.48 there; 0.54 over 50 runs here)
+    assert (
+        r["image"][0][1] >= 0.3 and r["image"][1][0] >= 0.3
+    )  # image alone confuses the look-alikes 1 and 2
     assert min(r["diagonal"]["image"][2:]) >= 0.9  # ... and not the others
     assert (tmp_path / "purity.png").stat().st_size > 10_000
 
@@ -38,11 +50,16 @@ def test_chnn_radar_study(tmp_path):
         for alg in ("alg1", "alg2", "alg3"):
             assert set(r[scen][alg]) >= {"pos", "vel"} and r[scen][alg]["pos"] > 0
         assert r[scen]["alg1"]["pos"] < r[scen]["alg2"]["pos"]  # the image term helps
-        assert r[scen]["alg1"]["pos"] == r[scen]["alg1_hungarian"]["pos"] or abs(
-            r[scen]["alg1"]["pos"] - r[scen]["alg1_hungarian"]["pos"]) < 0.2 * r[scen]["alg1"]["pos"]
+        assert (
+            r[scen]["alg1"]["pos"] == r[scen]["alg1_hungarian"]["pos"]
+            or abs(r[scen]["alg1"]["pos"] - r[scen]["alg1_hungarian"]["pos"])
+            < 0.2 * r[scen]["alg1"]["pos"]
+        )
     assert len(r["two"]["alg1"]["per_target"]) == 2
     assert r["paper"]["single"]["alg1"]["pos"] == 98.0313
-    assert (tmp_path / "single_target_rms_pos.png").is_file() and (tmp_path / "two_trajectories.png").is_file()
+    assert (tmp_path / "single_target_rms_pos.png").is_file() and (
+        tmp_path / "two_trajectories.png"
+    ).is_file()
 
 
 def test_output_fingerprint_saves_and_checks(tmp_path):
@@ -53,6 +70,11 @@ def test_output_fingerprint_saves_and_checks(tmp_path):
     assert list(saved) == ["fast-s0"] and len(saved["fast-s0"]) == 64
     run_tool("output_fingerprint.py", *args, "--check", str(fp))  # the same code: byte-identical
     fp.write_text(json.dumps({"fast-s0": "0" * 64}))
-    r = subprocess.run([sys.executable, str(ROOT / "tools" / "output_fingerprint.py"), *args, "--check", str(fp)],
-                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        [sys.executable, str(ROOT / "tools" / "output_fingerprint.py"), *args, "--check", str(fp)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert r.returncode == 1 and "output differs: fast-s0" in r.stderr

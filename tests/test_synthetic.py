@@ -25,7 +25,9 @@ def test_deterministic_by_seed(tmp_path):
     for f in ("visible/00010v.jpg", "infrared/00020i.jpg", "visible.txt"):
         assert (a / f).read_bytes() == (b / f).read_bytes()
     assert (a / "visible/00010v.jpg").read_bytes() != (c / "visible/00010v.jpg").read_bytes()
-    assert (a / "visible.txt").read_text() == (c / "visible.txt").read_text()  # paths do not depend on the seed
+    assert (a / "visible.txt").read_text() == (
+        c / "visible.txt"
+    ).read_text()  # paths do not depend on the seed
     assert json.loads((a / "scene.json").read_text())["seed"] == 5
 
 
@@ -37,9 +39,12 @@ def test_refuses_to_overwrite(tmp_path):
         synthesize("nope", tmp_path / "b")
 
 
-@pytest.mark.parametrize("name, frames", [("approach", (1, 100, 200)), ("fast", (1, 23, 60)), ("shadows", (5, 150))])
+@pytest.mark.parametrize(
+    "name, frames", [("approach", (1, 100, 200)), ("fast", (1, 23, 60)), ("shadows", (5, 150))]
+)
 def test_truth_matches_the_rendered_ir_silhouette(name, frames):
-    """The IR blob (threshold halfway to the target's heat) has the truth box within 1.5 px per side."""
+    """The IR blob (threshold halfway to the target's heat) has the truth box within 1.5 px per
+    side."""
     sc = SCENARIOS[name]
     r = Renderer(sc, seed=0)
     actor = next(a for a in sc.actors if a.target_id == 1)
@@ -50,11 +55,20 @@ def test_truth_matches_the_rendered_ir_silhouette(name, frames):
         box, vis = truth[1]
         thr = sc.ir_ambient + 0.3 * actor.ir_contrast
         mask = (cv2.GaussianBlur(ir, (0, 0), 1.0) > thr).astype(np.uint8)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask)
+        _n, labels, stats, _ = cv2.connectedComponentsWithStats(mask)
         cx, cy = int(box[0] + box[2] / 2), int(box[1] + box[3] / 2)
-        lab = labels[cy, cx] or np.bincount(labels[int(box[1]):int(box[1] + box[3]), int(box[0]):int(box[0] + box[2])].ravel()).argmax()
+        lab = (
+            labels[cy, cx]
+            or np.bincount(
+                labels[
+                    int(box[1]) : int(box[1] + box[3]), int(box[0]) : int(box[0] + box[2])
+                ].ravel()
+            ).argmax()
+        )
         x, y, w, h, _ = stats[lab]
-        np.testing.assert_allclose([x, y, x + w, y + h], [box[0], box[1], box[0] + box[2], box[1] + box[3]], atol=1.5)
+        np.testing.assert_allclose(
+            [x, y, x + w, y + h], [box[0], box[1], box[0] + box[2], box[1] + box[3]], atol=1.5
+        )
         assert vis == 1.0
 
 
@@ -68,9 +82,13 @@ def test_files_and_reader_round_trip(scene):
     for t in range(1, 81):
         _, _, truth = r.render(t)
     for tid in (1, 2):
-        np.testing.assert_allclose(seq.truth.boxes["visible"][tid][79], truth[tid][0], atol=2e-3)  # gt.txt is 1-based
+        np.testing.assert_allclose(
+            seq.truth.boxes["visible"][tid][79], truth[tid][0], atol=2e-3
+        )  # gt.txt is 1-based
         assert seq.truth.visibility[tid][79] == pytest.approx(truth[tid][1], abs=1e-3)
-    assert min(meta["visibility"]["2"]) < 0.1  # the far target is (nearly) fully hidden at the crossing
+    assert (
+        min(meta["visibility"]["2"]) < 0.1
+    )  # the far target is (nearly) fully hidden at the crossing
 
 
 def test_occluders_hide_and_frames_leave(scene):
@@ -79,14 +97,19 @@ def test_occluders_hide_and_frames_leave(scene):
     assert len(hidden) == 1 and hidden[0][1] - hidden[0][0] >= 10
 
 
-
 def test_target_leaving_the_frame_has_no_truth(tmp_path, monkeypatch):
     from pipeline import synthetic
     from pipeline.synthetic.scenarios import keyframes
     from pipeline.synthetic.scene import Actor, Scene
 
-    sc = Scene("exit", "leaves", 160, 120, 12, (Actor("car", 40, keyframes([(1, 100, 70, 1.0), (12, 210, 70, 1.0)]),
-                                                       target_id=1),))
+    sc = Scene(
+        "exit",
+        "leaves",
+        160,
+        120,
+        12,
+        (Actor("car", 40, keyframes([(1, 100, 70, 1.0), (12, 210, 70, 1.0)]), target_id=1),),
+    )
     monkeypatch.setitem(synthetic.SCENARIOS, "exit", sc)
     d = synthetic.synthesize("exit", tmp_path / "exit")
     meta = json.loads((d / "scene.json").read_text())

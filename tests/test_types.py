@@ -35,5 +35,11 @@ def test_to_cv_stays_inside():
 
 def test_statuses_are_design_names():
     assert [s.value for s in TargetStatus] == [
-        "tentative", "tracking", "occluded-partial", "occluded-severe", "merged", "lost"]
+        "tentative",
+        "tracking",
+        "occluded-partial",
+        "occluded-severe",
+        "merged",
+        "lost",
+    ]
     assert not TargetStatus.LOST.is_reported and TargetStatus.MERGED.is_reported

@@ -1,8 +1,10 @@
-"""Ablation of the dual tracker: the paper's configuration, the full tracker, and each addition off in turn.
+"""Ablation of the dual tracker: the paper's configuration, the full tracker, and each addition off
+in turn.
 
 Usage::
 
-    python tools/ablation_dual.py [--split dev|test] [--count N] [--named] [--out DIR] [--variants a,b,...]
+    python tools/ablation_dual.py [--split dev|test] [--count N] [--named] [--out DIR] [--variants
+    a,b,...]
 
 Runs ``dual`` with every variant on the first ``--count`` single-target random scenes of the
 split (``dev`` to decide, ``test`` to report) and, with ``--named``, on the eight named
@@ -41,7 +43,16 @@ VARIANTS: dict[str, list[str]] = {
     "-closing": ["contour.closing_fraction=0"],
     "paper": [],  # data/dual-paper.toml
 }
-NAMED = ("shadows", "dusk", "approach", "lookalike", "hot-distractor", "crossover", "occluder", "fast")
+NAMED = (
+    "shadows",
+    "dusk",
+    "approach",
+    "lookalike",
+    "hot-distractor",
+    "crossover",
+    "occluder",
+    "fast",
+)
 
 
 def _p10(xs: list[float]) -> float:
@@ -70,7 +81,9 @@ def main() -> None:
             raise SystemExit(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
     with tempfile.TemporaryDirectory() as tmp:
         root = a.out or Path(tmp)
-        sets_of = {"random": random_scene_set(a.count, a.split, targets=(1, 1), out=root / "scenes")}
+        sets_of = {
+            "random": random_scene_set(a.count, a.split, targets=(1, 1), out=root / "scenes")
+        }
         if a.named:
             named = []
             for sc in NAMED:
@@ -85,30 +98,57 @@ def main() -> None:
         for v in variants:
             cfg = PAPER if v == "paper" else None
             for what, dirs in sets_of.items():
-                rows = [r for r in run_bench(dirs, ["dual"], out=root / "runs" / v / what, sets=VARIANTS[v],
-                                             config_path=cfg) if "p20" in r]
+                rows = [
+                    r
+                    for r in run_bench(
+                        dirs,
+                        ["dual"],
+                        out=root / "runs" / v / what,
+                        sets=VARIANTS[v],
+                        config_path=cfg,
+                    )
+                    if "p20" in r
+                ]
                 p20 = [float(r["p20"]) for r in rows]
                 auc = [float(r["auc"]) for r in rows]
                 fps = [float(r["fps_tracking"]) for r in rows]
-                table.setdefault(v, {})[what] = (statistics.mean(p20), statistics.mean(auc), _p10(p20),
-                                                 statistics.median(fps))
+                table.setdefault(v, {})[what] = (
+                    statistics.mean(p20),
+                    statistics.mean(auc),
+                    _p10(p20),
+                    statistics.median(fps),
+                )
                 if v == "full":
                     for r in rows:
                         frames += int(r["frames"])
                         for k, s in dict(r["stage_seconds"]).items():
                             stages[k] = stages.get(k, 0.0) + float(s)
-        head = "| variant |" + "".join(f" {w}: P@20 / AUC (p10 P@20) | {w}: fps |" for w in sets_of)
-        print(f"dual on {a.count} single-target {a.split} scenes" + (" and the eight named scenes" if a.named else ""))
+        head = "| variant |" + "".join(
+            f" {w}: P@20 / AUC (p10 P@20) | {w}: fps |" for w in sets_of
+        )
+        print(
+            f"dual on {a.count} single-target {a.split} scenes"
+            + (" and the eight named scenes" if a.named else "")
+        )
         print()
         print(head)
         print("|---|" + "---|---|" * len(sets_of))
         for v, per in table.items():
-            cells = "".join(f" {p:.3f} / {u:.3f} ({q:.3f}) | {f:.0f} |" for p, u, q, f in (per[w] for w in sets_of))
+            cells = "".join(
+                f" {p:.3f} / {u:.3f} ({q:.3f}) | {f:.0f} |"
+                for p, u, q, f in (per[w] for w in sets_of)
+            )
             print(f"| {v} |{cells}")
         if frames:
             print()
-            print("per-stage time of the full tracker, ms per frame: " + ", ".join(
-                f"{k} {1e3 * s / frames:.2f}" for k, s in stages.items() if k not in ("decode", "sinks", "tracker")))
+            print(
+                "per-stage time of the full tracker, ms per frame: "
+                + ", ".join(
+                    f"{k} {1e3 * s / frames:.2f}"
+                    for k, s in stages.items()
+                    if k not in ("decode", "sinks", "tracker")
+                )
+            )
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ def main() -> None:
     from pipeline.stages.association import get_associator
     from pipeline.stages.detection import detect
     from pipeline.trackers.detect import DetTrack, _kcfg, pair_costs
-    from pipeline.types import BBox, TargetStatus
+    from pipeline.types import TargetStatus
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--tracks", type=int, default=50)
@@ -40,16 +40,18 @@ def main() -> None:
     cv2.setNumThreads(1)
     rng = np.random.default_rng(0)
     H, W = 480, 640
-    cols, rows = 10, 6
-    pos = [(32 + 64 * (k % cols) + rng.uniform(-4, 4), 40 + 80 * (k // cols) + rng.uniform(-4, 4))
-           for k in range(a.detections)]
+    cols = 10
+    pos = [
+        (32 + 64 * (k % cols) + rng.uniform(-4, 4), 40 + 80 * (k // cols) + rng.uniform(-4, 4))
+        for k in range(a.detections)
+    ]
 
     def frame(offset: float) -> np.ndarray:
         img = cv2.GaussianBlur(rng.normal(90, 20, (H, W)), (0, 0), 5)
         for k, (x, y) in enumerate(pos):
             tex = cv2.GaussianBlur(np.random.default_rng(k).normal(70, 25, (44, 18)), (0, 0), 2)
             x0, y0 = int(x + offset * ((k % 3) - 1)), int(y + offset)
-            img[y0 - 22:y0 + 22, x0 - 9:x0 + 9] += tex
+            img[y0 - 22 : y0 + 22, x0 - 9 : x0 + 9] += tex
         return np.clip(img, 0, 255).astype(np.uint8)
 
     prev, cur = frame(0.0), frame(2.0)
@@ -75,18 +77,27 @@ def main() -> None:
         tracks.append(DetTrack(k + 1, kf, r.box, TargetStatus.TRACKING, 1, 5, 0, prev, r.box))
         priors.append(kalman.predict(kf, F, Q))
     timing: dict[str, float] = {}
-    t_pairs, (cost, lam, gam) = timed(lambda: pair_costs(tracks, priors, regions, cur, cfg, timing))
+    t_pairs, (cost, _lam, _gam) = timed(
+        lambda: pair_costs(tracks, priors, regions, cur, cfg, timing)
+    )
     gated = int(np.isfinite(cost).sum())
     miss = np.full(len(tracks), 2.3)
     new = np.full(len(regions), 9.2)
     hung = get_associator("hungarian")
     t_hung, res = timed(lambda: hung(np.where(np.isfinite(cost), cost, 1e9), miss, new))
-    print(f"640x480 frame, {len(tracks)} tracks x {len(regions)} detections (of {a.detections} planted)")
+    print(
+        f"640x480 frame, {len(tracks)} tracks x {len(regions)} detections (of {a.detections} "
+        "planted)"
+    )
     print(f"detection: {t_det:.2f} ms per frame")
-    print(f"pair costs: {t_pairs:.2f} ms ({gated} gated pairs matched by ECC, "
-          f"{1e3 * timing.get('roi_match', 0) / a.repeats / max(gated, 1):.2f} ms per ECC match)")
-    print(f"assignment (Hungarian, {len(tracks) + len(regions)}^2 padded): {t_hung:.3f} ms; "
-          f"{len(res.pairs)} pairs")
+    print(
+        f"pair costs: {t_pairs:.2f} ms ({gated} gated pairs matched by ECC, "
+        f"{1e3 * timing.get('roi_match', 0) / a.repeats / max(gated, 1):.2f} ms per ECC match)"
+    )
+    print(
+        f"assignment (Hungarian, {len(tracks) + len(regions)}^2 padded): {t_hung:.3f} ms; "
+        f"{len(res.pairs)} pairs"
+    )
     print(f"frame total (detection + pairs + assignment): {t_det + t_pairs + t_hung:.2f} ms")
 
     # CHNN on 10 targets x 30 measurements (random scene, gated Mahalanobis distances, image term)
@@ -110,9 +121,13 @@ def main() -> None:
         mine = float((d + F)[res.rows, np.arange(10)].sum())
         gaps.append(mine - best)
         sweeps.append(res.sweeps)
-    print(f"CHNN 10 targets x 30 measurements: {1e3 * float(np.median(ts)):.3f} ms per frame (median of {len(ts)}), "
-          f"{np.mean(sweeps):.1f} sweeps; equal to the Hungarian optimum in {np.mean(np.array(gaps) < 1e-9) * 100:.0f} % "
-          f"of frames")
+    print(
+        f"CHNN 10 targets x 30 measurements: {1e3 * float(np.median(ts)):.3f} ms per frame "
+        f"(median of {len(ts)}), "
+        f"{np.mean(sweeps):.1f} sweeps; equal to the Hungarian optimum in "
+        f"{np.mean(np.array(gaps) < 1e-9) * 100:.0f} % "
+        f"of frames"
+    )
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """The fused-image CHNN paper's radar study: single and two manoeuvring targets in clutter.
 
-Usage: python tools/chnn_radar_study.py [--runs 100] [--out DIR] [--seed 0] [--sweep | --sensitivity]
+Usage: python tools/chnn_radar_study.py [--runs 100] [--out DIR] [--seed 0] [--sweep |
+--sensitivity]
 
 The paper's settings (its tables 1-6, docs/algorithms.md §6): targets start at (x, x', y, y') =
 (1000 m, 200 m/s, 9000 m, 250 m/s) (single), (1000, 200, 9000, -250) and (1000, 200, 5000,
@@ -16,21 +17,20 @@ radius), image weight D = 100; 100 Monte Carlo runs. Algorithms:
    gate; updating with the centroid of the gated returns instead measured 274 m single
    (below algorithm 2) and lost both tracks at the two-target crossing.
 
-What the paper leaves open, chosen here (and in ``rms.json`` under ``settings``):
-sampling period 1 s; 100 steps; clutter uniform in a 2 km x 2 km square around every
-target, Poisson with mean 1.5 points per target per step (and every target detected every
-step); image chips 16 x 16: a target's is its class template (a bright cross for target 1,
-a ring for target 2) plus noise of std 10 grey levels, a clutter point's is the same noise on
-a random blob; the image term F = 1 - R with R the normalized cross-correlation of the chip with the
-target's template (F as a dissimilarity: the paper prints F as if larger were better, but a
-larger F raises the energy); the filter is constant-velocity with Q = 20^2 m^2 on the
-positions (the paper's position noise) plus white acceleration of std 5 m/s^2, and the
-adaptive test at D_sigma = 2; the gate radius L = 8. Measured over 20 runs per setting
-(gate 5/7/8, acceleration std 0.5/2/5, D_sigma 2/3): with gate 5 or 7 a track that falls
-out of its gate during the paper's 42 m/s^2 manoeuvres never finds the target again (alg1
-777 m single-target RMS over 100 runs with gate 7, 5 km with gate 5); gate 8 kept every
-track, and acceleration std 5 was the lowest error there; D_sigma = 3 reacts too late
-(alg1 300-320 m).
+What the paper leaves open, chosen here (and in ``rms.json`` under ``settings``): sampling period 1
+s; 100 steps; clutter uniform in a 2 km x 2 km square around every target, Poisson with mean 1.5
+points per target per step (and every target detected every step); image chips 16 x 16: a target's
+is its class template (a bright cross for target 1, a ring for target 2) plus noise of std 10 grey
+levels, a clutter point's is the same noise on a random blob; the image term F = 1 - R with R the
+normalized cross-correlation of the chip with the target's template (F as a dissimilarity: the
+paper prints F as if larger were better, but a larger F raises the energy); the filter is
+constant-velocity with Q = 20^2 m^2 on the positions (the paper's position noise) plus white
+acceleration of std 5 m/s^2, and the adaptive test at D_sigma = 2; the gate radius L = 8. Measured
+over 20 runs per setting (gate 5/7/8, acceleration std 0.5/2/5, D_sigma 2/3): with gate 5 or 7 a
+track that falls out of its gate during the paper's 42 m/s^2 manoeuvres never finds the target
+again (alg1 777 m single-target RMS over 100 runs with gate 7, 5 km with gate 5); gate 8 kept every
+track, and acceleration std 5 was the lowest error there; D_sigma = 3 reacts too late (alg1 300-320
+m).
 
 ``--sensitivity`` runs algorithms 1-3 at sampling periods 1 / 0.5 / 0.2 / 0.1 / 0.05 / 0.02 s,
 with this study's Q and with the paper's (position noise only), and reports the position RMS
@@ -59,7 +59,7 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 DT = 1.0
 STEPS = 100
@@ -70,15 +70,24 @@ A, IMG_W = 1.0, 100.0
 MANEUVER_SIGMA = 2.0
 CHIP_NOISE = 10.0
 CLUTTER_HALF_M = 1000.0
-PAPER = {"single": {"alg1": {"pos": 98.0313, "vel": 27.2882}, "alg2": {"pos": 122.9065, "vel": 23.7867},
-                    "alg3": {"pos": 150.1198, "vel": 37.7331}},
-         "two": {"alg1": {"pos": (95.2948 + 93.2181) / 2, "vel": (25.9338 + 25.9644) / 2},
-                 "alg2": {"pos": (119.9430 + 118.0023) / 2, "vel": (24.9031 + 25.1190) / 2},
-                 "alg3": {"pos": (155.8445 + 157.0553) / 2, "vel": (32.7016 + 32.5849) / 2}}}
+PAPER = {
+    "single": {
+        "alg1": {"pos": 98.0313, "vel": 27.2882},
+        "alg2": {"pos": 122.9065, "vel": 23.7867},
+        "alg3": {"pos": 150.1198, "vel": 37.7331},
+    },
+    "two": {
+        "alg1": {"pos": (95.2948 + 93.2181) / 2, "vel": (25.9338 + 25.9644) / 2},
+        "alg2": {"pos": (119.9430 + 118.0023) / 2, "vel": (24.9031 + 25.1190) / 2},
+        "alg3": {"pos": (155.8445 + 157.0553) / 2, "vel": (32.7016 + 32.5849) / 2},
+    },
+}
 SCENARIOS = {
     "single": [((1000.0, 200.0, 9000.0, 250.0), ((30.0, -30.0), (-30.0, 30.0)))],
-    "two": [((1000.0, 200.0, 9000.0, -250.0), ((30.0, -30.0), (-30.0, 30.0))),
-            ((1000.0, 200.0, 5000.0, 250.0), ((30.0, 30.0), (-30.0, -30.0)))],
+    "two": [
+        ((1000.0, 200.0, 9000.0, -250.0), ((30.0, -30.0), (-30.0, 30.0))),
+        ((1000.0, 200.0, 5000.0, 250.0), ((30.0, 30.0), (-30.0, -30.0))),
+    ],
 }
 ALGS = ("alg1", "alg2", "alg3", "alg1_hungarian", "imm", "fading")
 
@@ -117,8 +126,12 @@ class Setup:
 DEFAULT = Setup()
 
 
-def truth(start: tuple[float, ...], acc: tuple[tuple[float, float], ...], rng: np.random.Generator,
-          setup: Setup = DEFAULT) -> np.ndarray:
+def truth(
+    start: tuple[float, ...],
+    acc: tuple[tuple[float, float], ...],
+    rng: np.random.Generator,
+    setup: Setup = DEFAULT,
+) -> np.ndarray:
     """(STEPS, 4) true states: constant velocity, the table's accelerations, position noise."""
     s = np.array(start, float)
     F, DT = setup.F, setup.dt_s
@@ -253,7 +266,9 @@ def associate(alg: str, filters: list, z: np.ndarray, F: np.ndarray) -> list[int
     img = alg in ("alg1", "alg1_hungarian", "imm", "fading")
     Fm = None
     if img:
-        Fm = np.zeros_like(dm)  # pseudo rows: no image evidence either way (F = 0); measurements: 1 - R
+        Fm = np.zeros_like(
+            dm
+        )  # pseudo rows: no image evidence either way (F = 0); measurements: 1 - R
         Fm[n:, :] = F
         Fm[n:, :][dm[n:, :] >= 1e9] = 0.0
     if alg == "alg1_hungarian":
@@ -269,7 +284,10 @@ def run_alg(alg: str, steps: list, tr: np.ndarray, setup: Setup = DEFAULT) -> np
     if alg == "imm":
         filters = [IMM(tr[i, 0] + np.array([0, 0, 0, 0.0]), setup) for i in range(n)]
     else:
-        filters = [CV(tr[i, 0].copy(), fading=1.02 if alg == "fading" else 1.0, setup=setup) for i in range(n)]
+        filters = [
+            CV(tr[i, 0].copy(), fading=1.02 if alg == "fading" else 1.0, setup=setup)
+            for i in range(n)
+        ]
     err = np.zeros((n, STEPS, 4))
     for k in range(STEPS):
         z, F, _src = steps[k]
@@ -289,8 +307,9 @@ def run_alg(alg: str, steps: list, tr: np.ndarray, setup: Setup = DEFAULT) -> np
     return err
 
 
-def study(runs: int, seed: int, clutter_mean: float, algs: tuple[str, ...],
-          setup: Setup = DEFAULT) -> tuple[dict, dict, dict]:
+def study(
+    runs: int, seed: int, clutter_mean: float, algs: tuple[str, ...], setup: Setup = DEFAULT
+) -> tuple[dict, dict, dict]:
     rng = np.random.default_rng(seed)
     tpl = templates()
     rms: dict[str, dict[str, dict[str, float]]] = {}
@@ -309,12 +328,23 @@ def study(runs: int, seed: int, clutter_mean: float, algs: tuple[str, ...],
         for a in algs:
             per_step = np.sqrt(sq[a][:, :, :2] / runs)  # (N, STEPS, 2)
             overall = np.sqrt(sq[a][:, :, :2].sum(axis=1) / (runs * STEPS))  # (N, 2)
-            axis = np.sqrt(sq[a][:, :, 2:].sum(axis=(1, 2)) / (2 * runs * STEPS))  # (N,) RMS of one coordinate
-            rms[name][a] = {"pos": round(float(overall[:, 0].mean()), 2), "vel": round(float(overall[:, 1].mean()), 2),
-                            "pos_per_axis": round(float(axis.mean()), 2)}
+            axis = np.sqrt(
+                sq[a][:, :, 2:].sum(axis=(1, 2)) / (2 * runs * STEPS)
+            )  # (N,) RMS of one coordinate
+            rms[name][a] = {
+                "pos": round(float(overall[:, 0].mean()), 2),
+                "vel": round(float(overall[:, 1].mean()), 2),
+                "pos_per_axis": round(float(axis.mean()), 2),
+            }
             if len(targets) > 1:
-                rms[name][a]["per_target"] = [{"pos": round(float(p), 2), "vel": round(float(v), 2)} for p, v in overall]
-            curves[name][a] = {"t": np.arange(STEPS) * setup.dt_s, "pos": per_step[:, :, 0].mean(0), "vel": per_step[:, :, 1].mean(0)}
+                rms[name][a]["per_target"] = [
+                    {"pos": round(float(p), 2), "vel": round(float(v), 2)} for p, v in overall
+                ]
+            curves[name][a] = {
+                "t": np.arange(STEPS) * setup.dt_s,
+                "pos": per_step[:, :, 0].mean(0),
+                "vel": per_step[:, :, 1].mean(0),
+            }
     return rms, curves, example
 
 
@@ -337,15 +367,21 @@ def sensitivity(runs: int, seed: int, clutter_mean: float) -> list[dict]:
 
 def sensitivity_table(rows: list[dict]) -> str:
     """Markdown: single-target alg. 1 and all three algorithms' 2-D / per-axis position RMS."""
-    head = ("| period s | filter Q | alg1 2-D m | alg1 per-axis m | alg1 vel m/s | alg2 2-D | alg3 2-D "
-            "| two: alg1 2-D | two: alg1 per-axis |\n|---|---|---|---|---|---|---|---|---|\n")
+    head = (
+        "| period s | filter Q | alg1 2-D m | alg1 per-axis m | alg1 vel m/s | alg2 2-D | alg3 "
+        "2-D "
+        "| two: alg1 2-D | two: alg1 per-axis |\n|---|---|---|---|---|---|---|---|---|\n"
+    )
     lines = []
     for r in rows:
         s1, t = r["single"], r["two"]
         q = "paper (20 m)" if r["acc_std"] == 0 else f"+ {r['acc_std']:g} m/s^2"
-        lines.append(f"| {r['dt_s']:g} | {q} | {s1['alg1']['pos']:.0f} | {s1['alg1']['pos_per_axis']:.0f} | "
-                     f"{s1['alg1']['vel']:.0f} | {s1['alg2']['pos']:.0f} | {s1['alg3']['pos']:.0f} | "
-                     f"{t['alg1']['pos']:.0f} | {t['alg1']['pos_per_axis']:.0f} |")
+        lines.append(
+            f"| {r['dt_s']:g} | {q} | {s1['alg1']['pos']:.0f} | {s1['alg1']['pos_per_axis']:.0f} "
+            "| "
+            f"{s1['alg1']['vel']:.0f} | {s1['alg2']['pos']:.0f} | {s1['alg3']['pos']:.0f} | "
+            f"{t['alg1']['pos']:.0f} | {t['alg1']['pos_per_axis']:.0f} |"
+        )
     return head + "\n".join(lines) + "\n"
 
 
@@ -382,8 +418,12 @@ def disagreement(runs: int, seed: int, clutter_mean: float) -> dict[str, float]:
             for f, r in zip(filters, h, strict=True):
                 if r >= 2:
                     f.update(z[r - 2])
-    return {"clutter_per_target": clutter_mean, "frames": frames, "disagree_fraction": differ / max(frames, 1),
-            "mean_cost_gap_when_differ": gap / max(differ, 1)}
+    return {
+        "clutter_per_target": clutter_mean,
+        "frames": frames,
+        "disagree_fraction": differ / max(frames, 1),
+        "mean_cost_gap_when_differ": gap / max(differ, 1),
+    }
 
 
 def main() -> None:
@@ -391,16 +431,25 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--out", type=Path, default=Path("runs/chnn_radar_study"))
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--clutter", type=float, default=1.5, help="mean clutter points per target per step")
-    ap.add_argument("--sweep", action="store_true", help="also the clutter-density sweep of CHNN vs Hungarian")
-    ap.add_argument("--sensitivity", action="store_true",
-                    help="only the sensitivity of algorithms 1-3 to the sampling period, Q and RMS definition")
+    ap.add_argument(
+        "--clutter", type=float, default=1.5, help="mean clutter points per target per step"
+    )
+    ap.add_argument(
+        "--sweep", action="store_true", help="also the clutter-density sweep of CHNN vs Hungarian"
+    )
+    ap.add_argument(
+        "--sensitivity",
+        action="store_true",
+        help="only the sensitivity of algorithms 1-3 to the sampling period, Q and RMS definition",
+    )
     a = ap.parse_args()
     t0 = time.perf_counter()
     if a.sensitivity:
         rows = sensitivity(a.runs, a.seed, a.clutter)
         a.out.mkdir(parents=True, exist_ok=True)
-        (a.out / "sensitivity.json").write_text(json.dumps({"rows": rows, "paper": PAPER, "runs": a.runs}, indent=1) + "\n")
+        (a.out / "sensitivity.json").write_text(
+            json.dumps({"rows": rows, "paper": PAPER, "runs": a.runs}, indent=1) + "\n"
+        )
         table = sensitivity_table(rows)
         (a.out / "sensitivity.md").write_text(table)
         from pipeline.sinks.study_plots import radar_sensitivity_figure
@@ -409,13 +458,29 @@ def main() -> None:
         print(table + f"wrote {a.out / 'sensitivity.json'} in {time.perf_counter() - t0:.0f} s")
         return
     rms, curves, example = study(a.runs, a.seed, a.clutter, ALGS)
-    out = {**rms, "paper": PAPER, "settings": {
-        "runs": a.runs, "seed": a.seed, "dt_s": DT, "steps": STEPS, "position_noise_m": POS_NOISE,
-        "measurement_noise_m": MEAS_NOISE, "gate_radius": GATE, "A": A, "B": GATE + 1.0, "image_weight_D": IMG_W,
-        "maneuver_sigma": MANEUVER_SIGMA, "clutter_per_target_per_step": a.clutter,
-        "clutter_square_m": 2 * CLUTTER_HALF_M}}
+    out = {
+        **rms,
+        "paper": PAPER,
+        "settings": {
+            "runs": a.runs,
+            "seed": a.seed,
+            "dt_s": DT,
+            "steps": STEPS,
+            "position_noise_m": POS_NOISE,
+            "measurement_noise_m": MEAS_NOISE,
+            "gate_radius": GATE,
+            "A": A,
+            "B": GATE + 1.0,
+            "image_weight_D": IMG_W,
+            "maneuver_sigma": MANEUVER_SIGMA,
+            "clutter_per_target_per_step": a.clutter,
+            "clutter_square_m": 2 * CLUTTER_HALF_M,
+        },
+    }
     if a.sweep:
-        out["sweep"] = [disagreement(max(a.runs // 5, 4), a.seed + 1, c) for c in (0.5, 1.5, 3.0, 6.0, 12.0)]
+        out["sweep"] = [
+            disagreement(max(a.runs // 5, 4), a.seed + 1, c) for c in (0.5, 1.5, 3.0, 6.0, 12.0)
+        ]
     out["settings"]["seconds"] = round(time.perf_counter() - t0, 1)
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "rms.json").write_text(json.dumps(out, indent=1) + "\n")
@@ -425,13 +490,20 @@ def main() -> None:
         radar_figures(a.out, curves[name], f"{name} target" + ("s" if name == "two" else ""))
         radar_trajectories(a.out / f"{name}_trajectories.png", example[name])
     for name in SCENARIOS:
-        print(f"{name}: " + ", ".join(f"{k} {v['pos']:.1f} m / {v['vel']:.1f} m/s" for k, v in rms[name].items())
-              + f"   (paper alg1 {PAPER[name]['alg1']['pos']:.1f}, alg2 {PAPER[name]['alg2']['pos']:.1f}, "
-                f"alg3 {PAPER[name]['alg3']['pos']:.1f} m)")
+        print(
+            f"{name}: "
+            + ", ".join(f"{k} {v['pos']:.1f} m / {v['vel']:.1f} m/s" for k, v in rms[name].items())
+            + f"   (paper alg1 {PAPER[name]['alg1']['pos']:.1f}, alg2 "
+            f"{PAPER[name]['alg2']['pos']:.1f}, "
+            f"alg3 {PAPER[name]['alg3']['pos']:.1f} m)"
+        )
     if a.sweep:
         for s in out["sweep"]:
-            print(f"clutter {s['clutter_per_target']:>4}: CHNN != Hungarian in {100 * s['disagree_fraction']:.1f} % of "
-                  f"frames, cost gap {s['mean_cost_gap_when_differ']:.2f}")
+            print(
+                f"clutter {s['clutter_per_target']:>4}: CHNN != Hungarian in "
+                f"{100 * s['disagree_fraction']:.1f} % of "
+                f"frames, cost gap {s['mean_cost_gap_when_differ']:.2f}"
+            )
     print(f"wrote {a.out / 'rms.json'} in {out['settings']['seconds']} s")
 
 

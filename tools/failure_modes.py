@@ -86,8 +86,9 @@ def scene_failures(scene_dir: Path, run_dir: Path) -> tuple[Counter, int]:
             rivals = [b for j, b in f.truth_visible.items() if j != tid and b is not None] + others
             if f.visibility.get(tid, 0.0) < 0.25:
                 counts["hidden"] += 1
-            elif shown and any(iou(box, b) >= 0.3 and iou(box, b) > iou(box, truth)
-                               for b in rivals):
+            elif shown and any(
+                iou(box, b) >= 0.3 and iou(box, b) > iou(box, truth) for b in rivals
+            ):
                 counts["on-other"] += 1
             elif not shown:
                 counts["lost"] += 1
@@ -122,8 +123,11 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|" + "---|" * len(CLASSES))
     for share, name, c, n in rows[: a.worst]:
         print(f"| {name} | {share:.3f} | " + " | ".join(f"{c[k] / n:.3f}" for k in CLASSES) + " |")
-    print(f"| all ({len(rows)} scenes) | {sum(grand.values()) / max(n_all, 1):.3f} | "
-          + " | ".join(f"{grand[k] / max(n_all, 1):.3f}" for k in CLASSES) + " |")
+    print(
+        f"| all ({len(rows)} scenes) | {sum(grand.values()) / max(n_all, 1):.3f} | "
+        + " | ".join(f"{grand[k] / max(n_all, 1):.3f}" for k in CLASSES)
+        + " |"
+    )
     return 0
 
 

@@ -1,14 +1,15 @@
 """Fingerprint the dual tracker's output, to check that a speed-up changed nothing.
 
-Usage: python tools/output_fingerprint.py [--scenes-dir DIR] [--only KEY,...] [--save FILE | --check FILE]
+Usage: python tools/output_fingerprint.py [--scenes-dir DIR] [--only KEY,...] [--save FILE |
+--check FILE]
 
-Renders (once, into DIR; default ``runs/fingerprint-scenes``) the eight single-target scenes
-with seeds 0 and 2, the four multi-target scenes with seed 0 and three scenes of the random
-family's development range, runs ``dual`` on each (no .rrd, no plots), then the variants of
-:data:`VARIANTS` on some of them (the paper's configuration, merge handling, one channel, the
-other engines of the project), and prints the SHA-256 of every ``targets.csv``. ``--save FILE`` writes
-them as JSON; ``--check FILE`` compares with a saved set and exits 1 naming the runs whose
-output differs. ``--only`` limits the runs to some keys (``fast-s0,group3-s0``).
+Renders (once, into DIR; default ``runs/fingerprint-scenes``) the eight single-target scenes with
+seeds 0 and 2, the four multi-target scenes with seed 0 and three scenes of the random family's
+development range, runs ``dual`` on each (no .rrd, no plots), then the variants of :data:`VARIANTS`
+on some of them (the paper's configuration, merge handling, one channel, the other engines of the
+project), and prints the SHA-256 of every ``targets.csv``. ``--save FILE`` writes them as JSON;
+``--check FILE`` compares with a saved set and exits 1 naming the runs whose output differs.
+``--only`` limits the runs to some keys (``fast-s0,group3-s0``).
 
 Why: the tracker's output is sensitive to float32 rounding in the level set (a rounding-level
 change flipped whole sequences, see README, Development), so a change meant to be only faster
@@ -28,16 +29,33 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-SINGLE = ("approach", "crossover", "dusk", "fast", "hot-distractor", "lookalike", "occluder", "shadows")
+SINGLE = (
+    "approach",
+    "crossover",
+    "dusk",
+    "fast",
+    "hot-distractor",
+    "lookalike",
+    "occluder",
+    "shadows",
+)
 MULTI = ("crossing2", "crossing3", "meet-part", "group3")
 RANDOM = (("random-7", 7, 1), ("random-11", 11, 3), ("random-12", 12, 2))  # development seeds
 RUNS = [(s, 0) for s in SINGLE] + [(s, 2) for s in SINGLE] + [(s, 0) for s in MULTI]
 # variant -> (tracker, --set items, --channel, scenes); "<variant>:<scene>-s<seed>" keys
 VARIANTS: dict[str, tuple[str, tuple[str, ...], str | None, tuple[str, ...]]] = {
-    "paper": ("dual", ("@data/dual-paper.toml",), None,
-              ("crossing2-s0", "crossing3-s0", "meet-part-s0", "group3-s0", "shadows-s0", "random-11")),
-    "merge": ("dual", ("dual.merge_handling=true",), None,
-              ("crossing2-s0", "crossing3-s0", "meet-part-s0", "group3-s0", "random-11", "random-12")),
+    "paper": (
+        "dual",
+        ("@data/dual-paper.toml",),
+        None,
+        ("crossing2-s0", "crossing3-s0", "meet-part-s0", "group3-s0", "shadows-s0", "random-11"),
+    ),
+    "merge": (
+        "dual",
+        ("dual.merge_handling=true",),
+        None,
+        ("crossing2-s0", "crossing3-s0", "meet-part-s0", "group3-s0", "random-11", "random-12"),
+    ),
     "ir": ("dual", (), "infrared", ("crossover-s0", "occluder-s0", "crossing2-s0", "random-7")),
     "visible": ("dual", (), "visible", ("dusk-s0", "lookalike-s0", "crossing2-s0", "random-7")),
     "kalman-camshift": ("kalman-camshift", (), None, ("occluder-s0", "fast-s0", "random-7")),
@@ -47,7 +65,8 @@ VARIANTS: dict[str, tuple[str, tuple[str, ...], str | None, tuple[str, ...]]] = 
 
 
 def all_keys() -> list[str]:
-    """Every run key: ``<scene>-s<seed>`` and ``random-<seed>`` for ``dual``, ``<variant>:<scene>`` for the rest."""
+    """Every run key: ``<scene>-s<seed>`` and ``random-<seed>`` for ``dual``, ``<variant>:<scene>``
+    for the rest."""
     keys = [f"{s}-s{d}" for s, d in RUNS] + [name for name, _, _ in RANDOM]
     return keys + [f"{v}:{scene}" for v, (_, _, _, scenes) in VARIANTS.items() for scene in scenes]
 
@@ -67,7 +86,8 @@ def _scene(scenes_dir: Path, name: str) -> Path:
 
 
 def fingerprints(scenes_dir: Path, only: set[str] | None = None) -> dict[str, str]:
-    """``{key: sha256 of targets.csv}`` for every run of :func:`all_keys` (or those in ``only``)."""
+    """``{key: sha256 of targets.csv}`` for every run of :func:`all_keys` (or those in
+    ``only``)."""
     import cv2
 
     from pipeline.run import RunOptions, run_track
@@ -84,9 +104,17 @@ def fingerprints(scenes_dir: Path, only: set[str] | None = None) -> dict[str, st
             if variant:
                 tracker, sets, channel, _ = VARIANTS[variant]
             config = next((root / s[1:] for s in sets if s.startswith("@")), None)
-            opts = RunOptions(tracker=tracker, out_dir=Path(tmp) / key.replace(":", "_"), rrd=False, plots=False,
-                              force=True, channel=channel, config_path=config,
-                              sets=[s for s in sets if not s.startswith("@")], progress=False)
+            opts = RunOptions(
+                tracker=tracker,
+                out_dir=Path(tmp) / key.replace(":", "_"),
+                rrd=False,
+                plots=False,
+                force=True,
+                channel=channel,
+                config_path=config,
+                sets=[s for s in sets if not s.startswith("@")],
+                progress=False,
+            )
             run_track(_scene(scenes_dir, scene), opts)
             out[key] = hashlib.sha256((opts.out_dir / "targets.csv").read_bytes()).hexdigest()
             print(f"{key:32s} {out[key][:16]}", flush=True)
@@ -107,7 +135,10 @@ def main() -> int:
     keys = set(all_keys())
     only = {k for k in a.only.split(",") if k} or None
     if only is not None and only - keys:
-        print(f"error: unknown run {sorted(only - keys)[0]!r}; runs: {', '.join(sorted(keys))}", file=sys.stderr)
+        print(
+            f"error: unknown run {sorted(only - keys)[0]!r}; runs: {', '.join(sorted(keys))}",
+            file=sys.stderr,
+        )
         return 2
     got = fingerprints(a.scenes_dir, only)
     if a.save is not None:

@@ -42,7 +42,7 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 DT_S = 2.0
 FRAMES = 100
@@ -85,7 +85,9 @@ def routes() -> np.ndarray:
     return out
 
 
-def singer(rng: np.random.Generator, n: int, tau_s: float = SINGER_TAU_S, sigma_a: float = SINGER_SIGMA) -> np.ndarray:
+def singer(
+    rng: np.random.Generator, n: int, tau_s: float = SINGER_TAU_S, sigma_a: float = SINGER_SIGMA
+) -> np.ndarray:
     """Position perturbation (n, 2), m, of a Singer acceleration process per axis (first-order
     Gauss-Markov acceleration, time constant ``tau_s``, std ``sigma_a`` m/s^2), from rest."""
     a = np.zeros((n, 2))
@@ -97,7 +99,8 @@ def singer(rng: np.random.Generator, n: int, tau_s: float = SINGER_TAU_S, sigma_
 
 
 def templates() -> dict[int, np.ndarray]:
-    """Class templates, 32 x 32 grey: 1 a car from above, 2 a truck with a trailer, 3 a tank-like shape."""
+    """Class templates, 32 x 32 grey: 1 a car from above, 2 a truck with a trailer, 3 a tank-like
+    shape."""
     import cv2
 
     out = {}
@@ -117,7 +120,8 @@ def templates() -> dict[int, np.ndarray]:
 
 
 def make_chip(tpl: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """One observed chip: the template rotated, with brightness, contrast and noise, on a 48 x 48 canvas."""
+    """One observed chip: the template rotated, with brightness, contrast and noise, on a 48 x 48
+    canvas."""
     import cv2
 
     canvas = np.full((48, 48), 60.0)
@@ -128,8 +132,15 @@ def make_chip(tpl: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.clip(img, 0, 255).astype(np.float32)
 
 
-def run_once(rng: np.random.Generator, tpls: dict[int, np.ndarray], modes: tuple[str, ...], matcher: str,
-             base: np.ndarray, process_noise: float = 1.0, sharpness: float = 20.0) -> tuple[dict[str, np.ndarray], np.ndarray]:
+def run_once(
+    rng: np.random.Generator,
+    tpls: dict[int, np.ndarray],
+    modes: tuple[str, ...],
+    matcher: str,
+    base: np.ndarray,
+    process_noise: float = 1.0,
+    sharpness: float = 20.0,
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """One Monte Carlo run: counts (4 x 5: tracks + none) per mode, and the true routes."""
     from scipy.optimize import linear_sum_assignment
 
@@ -151,10 +162,28 @@ def run_once(rng: np.random.Generator, tpls: dict[int, np.ndarray], modes: tuple
     R = np.eye(2) * NOISE_VAR_M2
     out = {}
     for mode in modes:
-        x = [np.array([meas[i, 1, 0], meas[i, 1, 1], (meas[i, 1, 0] - meas[i, 0, 0]) / DT_S,
-                       (meas[i, 1, 1] - meas[i, 0, 1]) / DT_S]) for i in range(4)]  # two-point start
-        P = [np.diag([NOISE_VAR_M2, NOISE_VAR_M2, 2 * NOISE_VAR_M2 / DT_S**2 + 1, 2 * NOISE_VAR_M2 / DT_S**2 + 1])
-             for _ in range(4)]
+        x = [
+            np.array(
+                [
+                    meas[i, 1, 0],
+                    meas[i, 1, 1],
+                    (meas[i, 1, 0] - meas[i, 0, 0]) / DT_S,
+                    (meas[i, 1, 1] - meas[i, 0, 1]) / DT_S,
+                ]
+            )
+            for i in range(4)
+        ]  # two-point start
+        P = [
+            np.diag(
+                [
+                    NOISE_VAR_M2,
+                    NOISE_VAR_M2,
+                    2 * NOISE_VAR_M2 / DT_S**2 + 1,
+                    2 * NOISE_VAR_M2 / DT_S**2 + 1,
+                ]
+            )
+            for _ in range(4)
+        ]
         tpl_of_track = [chips[i][1][8:40, 8:40] for i in range(4)]
         counts = np.zeros((4, 5))
         for k in range(2, FRAMES):
@@ -191,9 +220,15 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("runs/purity_study"))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--matcher", choices=("ecc", "gat"), default="ecc")
-    ap.add_argument("--process-noise", type=float, default=1.0, help="Kalman q, m^2/s^3 (white acceleration)")
-    ap.add_argument("--sharpness", type=float, default=20.0,
-                    help="image likelihood exp(-k (1 - rho)); 0 = the paper's max(rho, eps)")
+    ap.add_argument(
+        "--process-noise", type=float, default=1.0, help="Kalman q, m^2/s^3 (white acceleration)"
+    )
+    ap.add_argument(
+        "--sharpness",
+        type=float,
+        default=20.0,
+        help="image likelihood exp(-k (1 - rho)); 0 = the paper's max(rho, eps)",
+    )
     a = ap.parse_args()
     cv2.setNumThreads(1)
     rng = np.random.default_rng(a.seed)
@@ -202,7 +237,7 @@ def main() -> None:
     total = {m: np.zeros((4, 5)) for m in MODES}
     example = None
     t0 = time.perf_counter()
-    for r in range(a.runs):
+    for _ in range(a.runs):
         counts, truth = run_once(rng, tpls, MODES, a.matcher, base, a.process_noise, a.sharpness)
         for m in MODES:
             total[m] += counts[m]
@@ -213,10 +248,18 @@ def main() -> None:
     result["none"] = {m: [round(float(v), 4) for v in frac[m][:, 4]] for m in MODES}
     result["diagonal"] = {m: [round(float(frac[m][i, i]), 4) for i in range(4)] for m in MODES}
     result["paper"] = PAPER
-    result["settings"] = {"runs": a.runs, "frames": FRAMES, "dt_s": DT_S, "noise_var_m2": NOISE_VAR_M2,
-                          "classes": list(CLASSES), "matcher": a.matcher, "seed": a.seed,
-                          "process_noise_m2_per_s3": a.process_noise, "image_sharpness": a.sharpness,
-                          "seconds": round(time.perf_counter() - t0, 1)}
+    result["settings"] = {
+        "runs": a.runs,
+        "frames": FRAMES,
+        "dt_s": DT_S,
+        "noise_var_m2": NOISE_VAR_M2,
+        "classes": list(CLASSES),
+        "matcher": a.matcher,
+        "seed": a.seed,
+        "process_noise_m2_per_s3": a.process_noise,
+        "image_sharpness": a.sharpness,
+        "seconds": round(time.perf_counter() - t0, 1),
+    }
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "purity.json").write_text(json.dumps(result, indent=1) + "\n")
     from pipeline.sinks.study_plots import purity_figure
@@ -226,8 +269,11 @@ def main() -> None:
     for m in MODES:
         d = result["diagonal"][m]
         print(f"{m:>6}: diagonal {' '.join(f'{v:.3f}' for v in d)}  (mean {np.mean(d):.3f})")
-    print(f" paper: state {PAPER['state']}, fused {PAPER['fused']}; {a.runs} runs in {result['settings']['seconds']} s; "
-          f"wrote {a.out / 'purity.json'}")
+    print(
+        f" paper: state {PAPER['state']}, fused {PAPER['fused']}; {a.runs} runs in "
+        f"{result['settings']['seconds']} s; "
+        f"wrote {a.out / 'purity.json'}"
+    )
 
 
 if __name__ == "__main__":

@@ -25,7 +25,16 @@ def main() -> None:
     from pipeline.sinks.rerun_sink import RerunSink
     from pipeline.sinks.settings import RerunConfig
     from pipeline.synthetic import synthesize
-    from pipeline.types import BBox, Event, EventKind, FrameResult, FrameTruth, TargetResult, TargetStatus, TruthMatch
+    from pipeline.types import (
+        BBox,
+        Event,
+        EventKind,
+        FrameResult,
+        FrameTruth,
+        TargetResult,
+        TargetStatus,
+        TruthMatch,
+    )
 
     ap = argparse.ArgumentParser()
     ap.add_argument("seq", nargs="?", type=Path)
@@ -43,22 +52,48 @@ def main() -> None:
             for tid in (1, 2):
                 box = BBox(100 + f.index * 0.5 * tid, 90, 24, 60)
                 contour = np.column_stack([box.cx + 12 * np.cos(ang), box.cy + 30 * np.sin(ang)])
-                tg.append(TargetResult(tid, box, TargetStatus.TRACKING, "levelset", {"meanshift": 4, "levelset": 30},
-                                       0.9, "updated:rho-high", 1.0, (contour,)))
+                tg.append(
+                    TargetResult(
+                        tid,
+                        box,
+                        TargetStatus.TRACKING,
+                        "levelset",
+                        {"meanshift": 4, "levelset": 30},
+                        0.9,
+                        "updated:rho-high",
+                        1.0,
+                        (contour,),
+                    )
+                )
             ev = (Event(EventKind.MERGE, "T1+T2 merged", (1, 2)),) if f.index % 50 == 0 else ()
-            results.append(FrameResult(f.index, tuple(tg), ev, {"meanshift": 4e-4, "levelset": 8e-4}))
+            results.append(
+                FrameResult(f.index, tuple(tg), ev, {"meanshift": 4e-4, "levelset": 8e-4})
+            )
         path = Path(tmp) / "run.rrd"
-        sink = RerunSink(path, seq.channels, [1, 2], RerunConfig(), "cost", {"x": 1}, True, "start")
+        sink = RerunSink(
+            path, seq.channels, [1, 2], RerunConfig(), "cost", {"x": 1}, True, "start"
+        )
         t0 = time.perf_counter()
         for f, r in zip(frames, results, strict=True):
-            sink.write(f, r, FrameTruth({"visible": {1: r.targets[0].box}}, {1: 1.5, 2: 2.5}, {1: 0.8, 2: 0.7},
-                                        {1: TruthMatch.OVERLAP, 2: TruthMatch.OVERLAP}))
+            sink.write(
+                f,
+                r,
+                FrameTruth(
+                    {"visible": {1: r.targets[0].box}},
+                    {1: 1.5, 2: 2.5},
+                    {1: 0.8, 2: 0.7},
+                    {1: TruthMatch.OVERLAP, 2: TruthMatch.OVERLAP},
+                ),
+            )
         t1 = time.perf_counter()
         sink.close()
         t2 = time.perf_counter()
         n = len(frames)
-        print(f"{n} frame pairs {seq.width}x{seq.height}: write {1e3 * (t1 - t0) / n:.3f} ms/frame, "
-              f"with close {1e3 * (t2 - t0) / n:.3f} ms/frame, .rrd {path.stat().st_size / n / 1024:.1f} kB/frame")
+        print(
+            f"{n} frame pairs {seq.width}x{seq.height}: write {1e3 * (t1 - t0) / n:.3f} ms/frame, "
+            f"with close {1e3 * (t2 - t0) / n:.3f} ms/frame, .rrd "
+            f"{path.stat().st_size / n / 1024:.1f} kB/frame"
+        )
 
 
 if __name__ == "__main__":

@@ -27,7 +27,13 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.eval import mot, protocols
-from pipeline.eval.single import center_errors, ious, precision_curve, single_target_metrics, success_curve
+from pipeline.eval.single import (
+    center_errors,
+    ious,
+    precision_curve,
+    single_target_metrics,
+    success_curve,
+)
 from pipeline.io.results import TrackTable, read_tracks
 from pipeline.io.sequence import Truth, open_sequence
 
@@ -40,20 +46,30 @@ def _mean(values: list[float]) -> float:
     return float(np.mean(v)) if v else float("nan")
 
 
-def track_for_truth(truth_ids: list[int], tracks: TrackTable, mapping: dict[int, int],
-                    id_rule: str = "auto") -> dict[int, int | None]:
+def track_for_truth(
+    truth_ids: list[int], tracks: TrackTable, mapping: dict[int, int], id_rule: str = "auto"
+) -> dict[int, int | None]:
     """Which track id is scored against each truth id (see the module doc)."""
     if id_rule not in ID_RULES:
         raise ValueError(f"id_rule must be one of {ID_RULES}; got {id_rule!r}")
-    if id_rule == "truth" or (id_rule == "auto" and tracks.boxes and set(tracks.boxes) <= set(truth_ids)):
+    if id_rule == "truth" or (
+        id_rule == "auto" and tracks.boxes and set(tracks.boxes) <= set(truth_ids)
+    ):
         return {g: (g if g in tracks.boxes else None) for g in truth_ids}
     if len(truth_ids) == 1 and len(tracks.boxes) == 1 and not mapping:
         return {truth_ids[0]: next(iter(tracks.boxes))}
     return {g: mapping.get(g) for g in truth_ids}
 
 
-def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "default",
-             id_rule: str = "auto", mot_rule: str = "trackeval", multi: bool | None = None) -> dict[str, object]:
+def evaluate(
+    truth: Truth,
+    tracks: TrackTable,
+    n_frames: int,
+    protocol: str = "default",
+    id_rule: str = "auto",
+    mot_rule: str = "trackeval",
+    multi: bool | None = None,
+) -> dict[str, object]:
     """Score ``tracks`` against ``truth`` (see the module doc for the keys).
 
     ``multi`` asks for the many-target scores (MOTA, IDF1, HOTA, purity, ...) even for one
@@ -76,9 +92,15 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
     if multi is None:
         multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
     if truth.distractors:
-        tracks = dataclasses.replace(tracks, boxes=mot.drop_distractor_matches(gt, tracks.boxes, truth.distractors))
+        tracks = dataclasses.replace(
+            tracks, boxes=mot.drop_distractor_matches(gt, tracks.boxes, truth.distractors)
+        )
     data = mot.sequence_data(gt, tracks.boxes, n_frames)
-    id_info = mot.idf1(gt, tracks.boxes, data=data) if tracks.boxes else {"idf1": 0.0, "idp": 0.0, "idr": 0.0, "mapping": {}}
+    id_info = (
+        mot.idf1(gt, tracks.boxes, data=data)
+        if tracks.boxes
+        else {"idf1": 0.0, "idp": 0.0, "idr": 0.0, "mapping": {}}
+    )
     which = track_for_truth(ids, tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]
     empty = np.full((n_frames, 4), np.nan)
 
@@ -87,7 +109,9 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
         t = which[g]
         pred = tracks.boxes[t] if t is not None else empty
         if protocol == "default":
-            per[str(g)] = single_target_metrics(pred, gt[g], gt_other[g] if gt_other and g in gt_other else None)
+            per[str(g)] = single_target_metrics(
+                pred, gt[g], gt_other[g] if gt_other and g in gt_other else None
+            )
         else:
             gv = truth.boxes.get("visible", {}).get(g)
             gi = truth.boxes.get("infrared", {}).get(g)
@@ -96,15 +120,26 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
             per[str(g)]["track_id"] = t
 
     out: dict[str, object] = {"protocol": protocol, "channel": ch}
-    keys = [k for k in next(iter(per.values())) if k not in ("frames", "frames_without_output", "track_id")]
+    keys = [
+        k
+        for k in next(iter(per.values()))
+        if k not in ("frames", "frames_without_output", "track_id")
+    ]
     if protocol == "gtot":
-        pooled = [protocols.gtot_counts(tracks.boxes[which[g]] if which[g] is not None else empty,
-                                        truth.boxes.get("visible", {}).get(g), truth.boxes.get("infrared", {}).get(g))
-                  for g in ids]
+        pooled = [
+            protocols.gtot_counts(
+                tracks.boxes[which[g]] if which[g] is not None else empty,
+                truth.boxes.get("visible", {}).get(g),
+                truth.boxes.get("infrared", {}).get(g),
+            )
+            for g in ids
+        ]
         frames = sum(p["frames"] for p in pooled)  # type: ignore[misc]
         pc = np.sum([p["precision_counts"] for p in pooled], axis=0).tolist()
         sc = np.sum([p["success_counts"] for p in pooled], axis=0).tolist()
-        out.update({k: v for k, v in protocols.gtot_from_counts(frames, pc, sc).items() if k != "frames"})
+        out.update(
+            {k: v for k, v in protocols.gtot_from_counts(frames, pc, sc).items() if k != "frames"}
+        )
     else:
         for k in keys:
             out[k] = _mean([per[str(g)].get(k, float("nan")) for g in ids])
@@ -122,7 +157,8 @@ def evaluate(truth: Truth, tracks: TrackTable, n_frames: int, protocol: str = "d
 
 
 def json_safe(x: object) -> object:
-    """``x`` with numpy scalars made Python numbers and NaN/inf made None, so it dumps as strict JSON."""
+    """``x`` with numpy scalars made Python numbers and NaN/inf made None, so it dumps as strict
+    JSON."""
     if isinstance(x, dict):
         return {k: json_safe(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
@@ -134,8 +170,14 @@ def json_safe(x: object) -> object:
     return x
 
 
-def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = "default", id_rule: str = "auto",
-                   mot_rule: str = "trackeval", **open_kw: object) -> dict[str, object]:
+def evaluate_files(
+    seq_dir: str | Path,
+    tracks_csv: str | Path,
+    protocol: str = "default",
+    id_rule: str = "auto",
+    mot_rule: str = "trackeval",
+    **open_kw: object,
+) -> dict[str, object]:
     """``dualtrack evaluate SEQ_DIR TRACKS_CSV``: open the sequence, read the results, score."""
     seq = open_sequence(seq_dir, **open_kw)  # type: ignore[arg-type]
     if not seq.truth.has_truth:
@@ -150,19 +192,27 @@ def evaluate_files(seq_dir: str | Path, tracks_csv: str | Path, protocol: str = 
     return out
 
 
-def curves(truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto") -> dict[int, dict[str, np.ndarray]]:
-    """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,) for plots and the .rrd."""
+def curves(
+    truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto"
+) -> dict[int, dict[str, np.ndarray]]:
+    """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,) for plots and the
+    .rrd."""
     ch = truth.primary_channel()
     assert ch is not None
     gt = truth.boxes[ch]
     id_info = mot.idf1(gt, tracks.boxes) if tracks.boxes else {"mapping": {}}
-    which = track_for_truth(list(gt), tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]
+    # type: ignore[arg-type]
+    which = track_for_truth(list(gt), tracks, id_info["mapping"], id_rule)
     out = {}
     for g, boxes in gt.items():
         t = which[g]
         pred = tracks.boxes[t] if t is not None else np.full((n_frames, 4), np.nan)
         err = center_errors(pred, boxes)
-        out[g] = {"errors": err, "precision": precision_curve(err), "success": success_curve(ious(pred, boxes))}
+        out[g] = {
+            "errors": err,
+            "precision": precision_curve(err),
+            "success": success_curve(ious(pred, boxes)),
+        }
     return out
 
 

@@ -33,7 +33,9 @@ SCORE_KEYS = {
 MULTI_KEYS = ("mota", "idf1", "hota", "id_switches")
 
 
-def sequence_curves(seq_dir: Path, tracks_csv: Path, protocol: str, id_rule: str = "auto") -> dict[str, object]:
+def sequence_curves(
+    seq_dir: Path, tracks_csv: Path, protocol: str, id_rule: str = "auto"
+) -> dict[str, object]:
     """Mean precision (51) and success (21) curves over the targets of one run, its frame
     count with truth, and for ``gtot`` the hit counts to pool (``id_rule`` as in
     :func:`pipeline.eval.evaluate`)."""
@@ -43,27 +45,49 @@ def sequence_curves(seq_dir: Path, tracks_csv: Path, protocol: str, id_rule: str
     prec = np.mean([c["precision"] for c in per.values()], axis=0)
     succ = np.mean([c["success"] for c in per.values()], axis=0)
     frames = int(sum(int((~np.isnan(c["errors"])).sum()) for c in per.values()))
-    out: dict[str, object] = {"precision": prec.tolist(), "success": succ.tolist(), "frames": frames}
+    out: dict[str, object] = {
+        "precision": prec.tolist(),
+        "success": succ.tolist(),
+        "frames": frames,
+    }
     if protocol == "gtot":
         ch = seq.truth.primary_channel()
         assert ch is not None
         ids = list(seq.truth.boxes[ch])
-        mapping = idf1_assignment(seq.truth.boxes[ch], tracks.boxes)["mapping"] if tracks.boxes else {}
-        counts = {"frames": 0, "precision_counts": np.zeros(51, int), "success_counts": np.zeros(51, int)}
+        mapping = (
+            idf1_assignment(seq.truth.boxes[ch], tracks.boxes)["mapping"] if tracks.boxes else {}
+        )
+        counts = {
+            "frames": 0,
+            "precision_counts": np.zeros(51, int),
+            "success_counts": np.zeros(51, int),
+        }
         for g in ids:
-            t = g if (g in tracks.boxes and id_rule != "assign") else mapping.get(g)  # type: ignore[union-attr]
+            # type: ignore[union-attr]
+            t = g if (g in tracks.boxes and id_rule != "assign") else mapping.get(g)
             pred = tracks.boxes[t] if t is not None else np.full((seq.n_frames, 4), np.nan)
-            c = protocols.gtot_counts(pred, seq.truth.boxes.get("visible", {}).get(g),
-                                      seq.truth.boxes.get("infrared", {}).get(g))
+            c = protocols.gtot_counts(
+                pred,
+                seq.truth.boxes.get("visible", {}).get(g),
+                seq.truth.boxes.get("infrared", {}).get(g),
+            )
             counts["frames"] += c["frames"]  # type: ignore[operator]
-            counts["precision_counts"] = counts["precision_counts"] + np.asarray(c["precision_counts"])
+            counts["precision_counts"] = counts["precision_counts"] + np.asarray(
+                c["precision_counts"]
+            )
             counts["success_counts"] = counts["success_counts"] + np.asarray(c["success_counts"])
-        out["gtot_counts"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in counts.items()}
+        out["gtot_counts"] = {
+            k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in counts.items()
+        }
     return out
 
 
 def _mean(values: list[object]) -> float | None:
-    v = [float(x) for x in values if isinstance(x, int | float) and not (isinstance(x, float) and math.isnan(x))]
+    v = [
+        float(x)
+        for x in values
+        if isinstance(x, int | float) and not (isinstance(x, float) and math.isnan(x))
+    ]
     return float(np.mean(v)) if v else None
 
 
@@ -84,7 +108,13 @@ def aggregate(entries: list[dict[str, object]], protocol: str) -> dict[str, obje
                 frames += int(c["frames"])
                 pc += np.asarray(c["precision_counts"], float)
                 sc += np.asarray(c["success_counts"], float)
-        out.update({k: v for k, v in protocols.gtot_from_counts(frames, pc.tolist(), sc.tolist()).items() if k != "frames"})
+        out.update(
+            {
+                k: v
+                for k, v in protocols.gtot_from_counts(frames, pc.tolist(), sc.tolist()).items()
+                if k != "frames"
+            }
+        )
         out["pooled_frames"] = frames
     else:
         for k in SCORE_KEYS[protocol]:
@@ -95,7 +125,8 @@ def aggregate(entries: list[dict[str, object]], protocol: str) -> dict[str, obje
         vals = [m.get(k) for m in metrics if k in m]  # type: ignore[operator, union-attr]
         if vals:
             out[k] = int(np.sum(vals)) if k == "id_switches" else _mean(vals)
-    pur = [m["purity"]["overall"] for m in metrics if isinstance(m.get("purity"), dict)]  # type: ignore[index, union-attr]
+    # type: ignore[index, union-attr]
+    pur = [m["purity"]["overall"] for m in metrics if isinstance(m.get("purity"), dict)]
     if pur:
         out["purity"] = _mean(pur)
     curves = [e["curves"] for e in entries if e.get("curves")]
@@ -105,14 +136,20 @@ def aggregate(entries: list[dict[str, object]], protocol: str) -> dict[str, obje
             w = w / w.sum() if w.sum() > 0 else np.full(len(curves), 1 / len(curves))
         else:
             w = np.full(len(curves), 1 / len(curves))
-        out["precision_curve"] = np.sum([wi * np.asarray(c["precision"]) for wi, c in zip(w, curves, strict=True)],
-                                        axis=0).tolist()
-        out["success_curve"] = np.sum([wi * np.asarray(c["success"]) for wi, c in zip(w, curves, strict=True)],
-                                      axis=0).tolist()
+        out["precision_curve"] = np.sum(
+            [wi * np.asarray(c["precision"]) for wi, c in zip(w, curves, strict=True)], axis=0
+        ).tolist()
+        out["success_curve"] = np.sum(
+            [wi * np.asarray(c["success"]) for wi, c in zip(w, curves, strict=True)], axis=0
+        ).tolist()
     fps = [e.get("fps_tracking") for e in entries]
     out["fps_tracking_mean"] = _mean(fps)
     frames_all = [int(e.get("frames") or 0) for e in entries]  # type: ignore[call-overload]
-    secs = sum(f / float(p) for f, p in zip(frames_all, fps, strict=True) if isinstance(p, int | float) and p > 0)
+    secs = sum(
+        f / float(p)
+        for f, p in zip(frames_all, fps, strict=True)
+        if isinstance(p, int | float) and p > 0
+    )
     out["frames"] = int(sum(frames_all))
     out["fps_tracking_pooled"] = float(sum(frames_all) / secs) if secs > 0 else None
     return out

@@ -1,4 +1,5 @@
-"""Scores restricted to the frames that carry a challenge attribute (random scenes' ``frame_attributes``).
+"""Scores restricted to the frames that carry a challenge attribute (random scenes'
+``frame_attributes``).
 
 A random scene's ``scene.json`` flags, per target and frame, occlusion, shadow, darkness,
 clutter, crossover, out of view, scale change and fast motion (1-based inclusive frame
@@ -19,7 +20,8 @@ from pipeline.io.sequence import Truth
 
 
 def attribute_masks(meta: dict[str, object], n_frames: int) -> dict[int, dict[str, np.ndarray]]:
-    """``{target id: {attribute: (n_frames,) bool}}`` from a scene's ``frame_attributes`` (empty if none)."""
+    """``{target id: {attribute: (n_frames,) bool}}`` from a scene's ``frame_attributes`` (empty if
+    none)."""
     fa = meta.get("frame_attributes")
     out: dict[int, dict[str, np.ndarray]] = {}
     if not isinstance(fa, dict):
@@ -37,8 +39,12 @@ def attribute_masks(meta: dict[str, object], n_frames: int) -> dict[int, dict[st
     return out
 
 
-def attribute_counts(truth: Truth, tracks: TrackTable, masks: dict[int, dict[str, np.ndarray]],
-                     which: dict[int, int | None]) -> dict[str, dict[str, object]]:
+def attribute_counts(
+    truth: Truth,
+    tracks: TrackTable,
+    masks: dict[int, dict[str, np.ndarray]],
+    which: dict[int, int | None],
+) -> dict[str, dict[str, object]]:
     """Per attribute: frames with truth carrying it, hits at 20 px, hits per success threshold.
 
     ``which`` maps each truth id to the track scored against it (None: no track).
@@ -49,32 +55,55 @@ def attribute_counts(truth: Truth, tracks: TrackTable, masks: dict[int, dict[str
         return out
     for g, gt in truth.boxes[ch].items():
         t = which.get(g)
-        pred = tracks.boxes[t] if t is not None and t in tracks.boxes else np.full(gt.shape, np.nan)
+        pred = (
+            tracks.boxes[t] if t is not None and t in tracks.boxes else np.full(gt.shape, np.nan)
+        )
         err = center_errors(pred, gt)
         ov = ious(pred, gt)
         has = ~np.isnan(err)
         for name, m in masks.get(g, {}).items():
             sel = m[: gt.shape[0]] & has
-            c = out.setdefault(name, {"frames": 0, "p20_hits": 0, "success_hits": np.zeros(SUCCESS_THRESHOLDS.size, int)})
+            c = out.setdefault(
+                name,
+                {
+                    "frames": 0,
+                    "p20_hits": 0,
+                    "success_hits": np.zeros(SUCCESS_THRESHOLDS.size, int),
+                },
+            )
             c["frames"] = int(c["frames"]) + int(sel.sum())  # type: ignore[call-overload]
-            c["p20_hits"] = int(c["p20_hits"]) + int((err[sel] <= 20.0).sum())  # type: ignore[call-overload]
-            c["success_hits"] = c["success_hits"] + (ov[sel][None, :] > SUCCESS_THRESHOLDS[:, None]).sum(axis=1)  # type: ignore[operator]
+            # type: ignore[call-overload]
+            c["p20_hits"] = int(c["p20_hits"]) + int((err[sel] <= 20.0).sum())
+            c["success_hits"] = c["success_hits"] + (
+                ov[sel][None, :] > SUCCESS_THRESHOLDS[:, None]
+            ).sum(axis=1)  # type: ignore[operator]
     return out
 
 
 def pool_counts(counts: list[dict[str, dict[str, object]]]) -> dict[str, dict[str, float]]:
-    """Sum the counts of many runs; ``{attribute: {"frames", "p20", "auc"}}`` (NaN scores without frames)."""
+    """Sum the counts of many runs; ``{attribute: {"frames", "p20", "auc"}}`` (NaN scores without
+    frames)."""
     total: dict[str, dict[str, object]] = {}
     for c in counts:
         for name, v in c.items():
-            t = total.setdefault(name, {"frames": 0, "p20_hits": 0, "success_hits": np.zeros(SUCCESS_THRESHOLDS.size, int)})
+            t = total.setdefault(
+                name,
+                {
+                    "frames": 0,
+                    "p20_hits": 0,
+                    "success_hits": np.zeros(SUCCESS_THRESHOLDS.size, int),
+                },
+            )
             t["frames"] = int(t["frames"]) + int(v["frames"])  # type: ignore[call-overload]
             t["p20_hits"] = int(t["p20_hits"]) + int(v["p20_hits"])  # type: ignore[call-overload]
-            t["success_hits"] = t["success_hits"] + np.asarray(v["success_hits"])  # type: ignore[operator]
+            # type: ignore[operator]
+            t["success_hits"] = t["success_hits"] + np.asarray(v["success_hits"])
     out = {}
     for name, t in total.items():
         n = int(t["frames"])  # type: ignore[call-overload]
-        out[name] = {"frames": float(n),
-                     "p20": float(t["p20_hits"]) / n if n else float("nan"),  # type: ignore[arg-type]
-                     "auc": float(np.mean(np.asarray(t["success_hits"]) / n)) if n else float("nan")}
+        out[name] = {
+            "frames": float(n),
+            "p20": float(t["p20_hits"]) / n if n else float("nan"),  # type: ignore[arg-type]
+            "auc": float(np.mean(np.asarray(t["success_hits"]) / n)) if n else float("nan"),
+        }
     return out

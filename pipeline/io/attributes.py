@@ -20,8 +20,27 @@ from pathlib import Path
 
 GTOT_ATTRIBUTES = ("OCC", "LSV", "FM", "LI", "HI", "TC", "SO", "DEF")
 RGBT234_ATTRIBUTES = ("NO", "PO", "HO", "LI", "LR", "TC", "DEF", "FM", "SV", "MB", "CM", "BC")
-LASHER_ATTRIBUTES = ("NO", "PO", "TO", "HO", "MB", "LI", "HI", "AIV", "LR", "DEF", "BC", "SA", "CM", "TC", "FL", "OV",
-                     "FM", "SV", "ARC")
+LASHER_ATTRIBUTES = (
+    "NO",
+    "PO",
+    "TO",
+    "HO",
+    "MB",
+    "LI",
+    "HI",
+    "AIV",
+    "LR",
+    "DEF",
+    "BC",
+    "SA",
+    "CM",
+    "TC",
+    "FL",
+    "OV",
+    "FM",
+    "SV",
+    "ARC",
+)
 ROOT_TABLES = ("sequencesAttr.txt", "attributes.txt", "attributes.csv")
 _SPLIT = re.compile(r"[,\s]+")
 
@@ -45,14 +64,18 @@ def read_root_table(root: Path) -> dict[str, tuple[str, ...]]:
             if names is None:  # a header row
                 names = tuple(flags)
             continue
-        cols = names or {8: GTOT_ATTRIBUTES, 12: RGBT234_ATTRIBUTES, 19: LASHER_ATTRIBUTES}.get(len(flags))
+        cols = names or {8: GTOT_ATTRIBUTES, 12: RGBT234_ATTRIBUTES, 19: LASHER_ATTRIBUTES}.get(
+            len(flags)
+        )
         if cols is None or len(cols) != len(flags):
             continue
         out[parts[0]] = tuple(c for c, v in zip(cols, flags, strict=True) if float(v) > 0)
     return out
 
 
-def sequence_attributes(seq_dir: Path, root_table: dict[str, tuple[str, ...]] | None = None) -> tuple[str, ...]:
+def sequence_attributes(
+    seq_dir: Path, root_table: dict[str, tuple[str, ...]] | None = None
+) -> tuple[str, ...]:
     """The attributes of one sequence folder (see the module doc); () when nothing says."""
     meta = seq_dir / "scene.json"
     if meta.is_file():

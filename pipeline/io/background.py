@@ -52,7 +52,7 @@ class SequenceBackground:
         lo = max(1, block * w + 1 - w // 2)
         hi = min(n, (block + 1) * w + w // 2)
         k = min(self.cfg.background_samples, hi - lo + 1)
-        return sorted({int(round(v)) for v in np.linspace(lo, hi, k)})
+        return sorted({round(v) for v in np.linspace(lo, hi, k)})
 
     def at(self, index: int) -> Background | None:
         """The background of frame ``index`` (1-based)."""
@@ -80,7 +80,9 @@ class SequenceBackground:
         return quantile_background(greys, self.cfg, labs if len(labs) == len(greys) else None)
 
 
-def sequence_background(seq: Sequence, channel: str, cfg: DetectionConfig) -> SequenceBackground | None:
+def sequence_background(
+    seq: Sequence, channel: str, cfg: DetectionConfig
+) -> SequenceBackground | None:
     """A :class:`SequenceBackground` when the configuration asks for one (``method = foreground``,
     ``background_init = sequence``), else None (the detector keeps its running background)."""
     if cfg.method != "foreground" or cfg.background_init != "sequence":

@@ -78,7 +78,11 @@ class ImageListSource:
             raise InputError(f"cannot read frame {index0 + 1}: {path}: {exc.strerror}") from None
         if not data:
             raise InputError(f"unreadable frame {index0 + 1}: {path} is empty (0 bytes)")
-        flag = cv2.IMREAD_GRAYSCALE if self.grey and path.suffix.lower() in (".jpg", ".jpeg") else cv2.IMREAD_UNCHANGED
+        flag = (
+            cv2.IMREAD_GRAYSCALE
+            if self.grey and path.suffix.lower() in (".jpg", ".jpeg")
+            else cv2.IMREAD_UNCHANGED
+        )
         try:
             image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
         except cv2.error:
@@ -146,7 +150,9 @@ def is_grey(image: np.ndarray) -> bool:
     if image.ndim == 2:
         return True
     if image.ndim == 3 and image.shape[2] == 3:
-        sample = image[:: max(image.shape[0] // 64, 1), :: max(image.shape[1] // 64, 1)].astype(np.int32)
+        sample = image[:: max(image.shape[0] // 64, 1), :: max(image.shape[1] // 64, 1)].astype(
+            np.int32
+        )
         return bool(
             np.abs(sample[..., 0] - sample[..., 1]).max() <= 2
             and np.abs(sample[..., 1] - sample[..., 2]).max() <= 2

@@ -26,7 +26,8 @@ from pipeline.errors import InputError
 
 _SPLIT = re.compile(r"[,\s;]+")
 MOT_BASE = 1.0
-"""Coordinate of the first pixel's corner in MOTChallenge files (``gt.txt``, ``det.txt``, ``tracks.csv``)."""
+"""Coordinate of the first pixel's corner in MOTChallenge files (``gt.txt``, ``det.txt``,
+``tracks.csv``)."""
 
 
 def _numbers(path: Path, lineno: int, line: str) -> list[float]:
@@ -35,7 +36,9 @@ def _numbers(path: Path, lineno: int, line: str) -> list[float]:
         return [float(p) for p in parts]
     except ValueError:
         bad = next(p for p in parts if not _is_float(p))
-        raise InputError(f"{path}:{lineno}: malformed ground truth, {bad!r} is not a number") from None
+        raise InputError(
+            f"{path}:{lineno}: malformed ground truth, {bad!r} is not a number"
+        ) from None
 
 
 def _is_float(s: str) -> bool:
@@ -126,14 +129,19 @@ class MotTruth:
     boxes: dict[int, np.ndarray]
     visibility: dict[int, np.ndarray] = field(default_factory=dict)
     last_frame: int = 0  # the largest frame number in the file
-    distractors: dict[int, np.ndarray] = field(default_factory=dict)  # DISTRACTOR_CLASSES rows, (N, 4) per id
+    distractors: dict[int, np.ndarray] = field(
+        default_factory=dict
+    )  # DISTRACTOR_CLASSES rows, (N, 4) per id
 
 
 DISTRACTOR_CLASSES = (2, 7, 8, 12)
-"""MOTChallenge classes whose matched tracker boxes are neither true nor false positives (TrackEval's
-MOT17 preprocessing: person on vehicle, static person, distractor, reflection)."""
+"""MOTChallenge classes whose matched tracker boxes are neither true nor false positives
+(TrackEval's MOT17 preprocessing: person on vehicle, static person, distractor, reflection)."""
 
-def parse_mot_rows(path: Path, base: float = 1.0) -> list[tuple[int, int, tuple[float, float, float, float], float, float]]:
+
+def parse_mot_rows(
+    path: Path, base: float = 1.0
+) -> list[tuple[int, int, tuple[float, float, float, float], float, float]]:
     """Rows ``(frame, id, box, flag, visibility)`` of a MOTChallenge-style file.
 
     Columns: ``frame,id,x,y,w,h[,flag/conf[,class[,visibility]]]``.
@@ -141,8 +149,11 @@ def parse_mot_rows(path: Path, base: float = 1.0) -> list[tuple[int, int, tuple[
     return [(f, t, b, flag, v) for f, t, b, flag, _cls, v in _mot_rows(path, base)]
 
 
-def _mot_rows(path: Path, base: float) -> list[tuple[int, int, tuple[float, float, float, float], float, int, float]]:
-    """Rows ``(frame, id, box, flag, class, visibility)``; class 1 where the file has no class column."""
+def _mot_rows(
+    path: Path, base: float
+) -> list[tuple[int, int, tuple[float, float, float, float], float, int, float]]:
+    """Rows ``(frame, id, box, flag, class, visibility)``; class 1 where the file has no class
+    column."""
     out = []
     for lineno, line in enumerate(_read_lines(path), start=1):
         if not line.strip():
@@ -155,7 +166,9 @@ def _mot_rows(path: Path, base: float) -> list[tuple[int, int, tuple[float, floa
             )
         frame, tid = values[0], values[1]
         if frame != int(frame) or tid != int(tid) or frame < 1:
-            raise InputError(f"{path}:{lineno}: malformed MOT row, frame and id must be integers, frame >= 1")
+            raise InputError(
+                f"{path}:{lineno}: malformed MOT row, frame and id must be integers, frame >= 1"
+            )
         box = row_to_box(values[2:6], "xywh", base)
         flag = values[6] if len(values) > 6 else 1.0
         cls = int(values[7]) if len(values) > 7 and math.isfinite(values[7]) else 1
@@ -192,7 +205,12 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
         vis[tid][frame - 1] = min(max(v, 0.0), 1.0) if not math.isnan(box[0]) else 0.0
     if not boxes:
         raise InputError(f"{path}: no ground-truth rows")
-    return MotTruth(dict(sorted(boxes.items())), dict(sorted(vis.items())), last, dict(sorted(distractors.items())))
+    return MotTruth(
+        dict(sorted(boxes.items())),
+        dict(sorted(vis.items())),
+        last,
+        dict(sorted(distractors.items())),
+    )
 
 
 def expand_sparse(boxes: np.ndarray, n_frames: int, every: int) -> np.ndarray:

@@ -71,11 +71,15 @@ def validate_init(targets: list[InitTarget], width: int, height: int) -> list[In
             raise InputError(f"init box of target {t.id} {b} must have positive width and height")
         c = b.clip(width, height)
         if c.area <= 0:
-            raise InputError(f"init box of target {t.id} {b} lies outside the {width}x{height} frame")
+            raise InputError(
+                f"init box of target {t.id} {b} lies outside the {width}x{height} frame"
+            )
         if c.w < 2 or c.h < 2:
             part = "its part inside the frame is" if c != b else "it is"
-            raise InputError(f"init box of target {t.id} {b} is too small to track: {part} {c.w:g}x{c.h:g} px, "
-                             "at least 2x2 is needed")
+            raise InputError(
+                f"init box of target {t.id} {b} is too small to track: {part} {c.w:g}x{c.h:g} px, "
+                "at least 2x2 is needed"
+            )
         out.append(InitTarget(t.id, c))
     return out
 
@@ -86,7 +90,11 @@ def truth_init(seq: Sequence, channel: str | None = None) -> list[InitTarget]:
     if truth.multi:
         ch = truth.primary_channel()
         assert ch is not None
-        out = [InitTarget(tid, BBox(*b[0])) for tid, b in truth.boxes[ch].items() if not np.isnan(b[0]).any()]
+        out = [
+            InitTarget(tid, BBox(*b[0]))
+            for tid, b in truth.boxes[ch].items()
+            if not np.isnan(b[0]).any()
+        ]
         if out:
             return out
     elif truth.has_truth:
@@ -111,9 +119,10 @@ def resolve_init(
     init_file: str | Path | None = None,
     channel: str | None = None,
 ) -> list[InitTarget]:
-    """Apply rules 1, 2 and 4 of the module doc and validate the result (``init`` items are ``"x,y,w,h"``
-    strings, :class:`BBox` or ``(x, y, w, h)`` tuples; ids 1..N)."""
+    """Apply rules 1, 2 and 4 of the module doc and validate the result (``init`` items are
+    ``"x,y,w,h"`` strings, :class:`BBox` or ``(x, y, w, h)`` tuples; ids 1..N)."""
     if init:
+
         def box(item: object) -> BBox:
             if isinstance(item, BBox):
                 return item

@@ -1,10 +1,10 @@
 """Reading tracker results back: our ``tracks.csv`` or a per-frame box file.
 
-``tracks.csv`` holds MOTChallenge rows ``frame,id,x,y,w,h,conf,-1,-1,-1``, 1-based as
-MOTChallenge files are (the ``gt.txt`` beside it is too), so TrackEval and py-motmetrics read a
-run folder as it is; they are read back into the 0-based continuous convention. A file of one ``x,y,w,h`` (or 8-value polygon) per line, as the
-single-object toolkits write, is read as target 1, line k = frame k; a row of zeros or
-NaN means no output in that frame.
+``tracks.csv`` holds MOTChallenge rows ``frame,id,x,y,w,h,conf,-1,-1,-1``, 1-based as MOTChallenge
+files are (the ``gt.txt`` beside it is too), so TrackEval and py-motmetrics read a run folder as it
+is; they are read back into the 0-based continuous convention. A file of one ``x,y,w,h`` (or
+8-value polygon) per line, as the single-object toolkits write, is read as target 1, line k = frame
+k; a row of zeros or NaN means no output in that frame.
 """
 
 from __future__ import annotations
@@ -31,11 +31,15 @@ def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
     """Read ``tracks.csv`` (MOT rows) or a per-frame box file for a sequence of ``n_frames``."""
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"results file not found: {p}" if not p.exists() else f"results file {p} is a folder")
+        raise InputError(
+            f"results file not found: {p}" if not p.exists() else f"results file {p} is a folder"
+        )
     try:
         text = p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
-        raise InputError(f"{p}: not a text results file (MOT rows or one x,y,w,h per line)") from None
+        raise InputError(
+            f"{p}: not a text results file (MOT rows or one x,y,w,h per line)"
+        ) from None
     except OSError as exc:
         raise InputError(f"cannot read {p}: {exc.strerror}") from None
     first = next((ln for ln in text.splitlines() if ln.strip()), None)
@@ -45,11 +49,19 @@ def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
     if n_cols in (4, 8):
         arr = parse_box_file(p, "xywh", 0.0)
         if arr.shape[0] > n_frames:
-            raise InputError(f"{p}: {arr.shape[0]} result lines for a sequence of {n_frames} frames")
+            raise InputError(
+                f"{p}: {arr.shape[0]} result lines for a sequence of {n_frames} frames"
+            )
         boxes = np.full((n_frames, 4), np.nan)
         boxes[: arr.shape[0]] = arr
-        short = (f"{p} has {arr.shape[0]} lines for {n_frames} frames; the frames past them have no output",) \
-            if arr.shape[0] < n_frames else ()
+        short = (
+            (
+                f"{p} has {arr.shape[0]} lines for {n_frames} frames; the frames past them have "
+                "no output",
+            )
+            if arr.shape[0] < n_frames
+            else ()
+        )
         return TrackTable({1: boxes}, {1: np.where(np.isnan(boxes[:, 0]), np.nan, 1.0)}, short)
     boxes_d: dict[int, np.ndarray] = {}
     conf_d: dict[int, np.ndarray] = {}
@@ -69,5 +81,8 @@ def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
     warnings = ()
     if dup:
         f, t = dup[0]
-        warnings = (f"{p}: {len(dup)} duplicate (frame, id) rows, the first frame {f} id {t}; the last row of each counts",)
+        warnings = (
+            f"{p}: {len(dup)} duplicate (frame, id) rows, the first frame {f} id {t}; the last "
+            "row of each counts",
+        )
     return TrackTable(dict(sorted(boxes_d.items())), dict(sorted(conf_d.items())), warnings)

@@ -19,10 +19,10 @@ vot            frames in folder   frames in folder    ``groundtruth.txt``       
 the way in (override with ``gt_base``). VTUAV annotates every 10th frame (frames 1, 11,
 21, ... here): the frames between have no truth and are not scored.
 
-A two-channel layout with only one of its halves (``visible/`` + ``visible.txt`` alone,
-say) is a one-channel sequence of the channel its folder names; where the folder name
-fits two layouts (``ir/``), the layout whose truth file is there is chosen. A MOTChallenge ``gt.txt`` (or ``gt/gt.txt``)
-beside the frames takes precedence over the single-target files (its base is 1).
+A two-channel layout with only one of its halves (``visible/`` + ``visible.txt`` alone, say) is a
+one-channel sequence of the channel its folder names; where the folder name fits two layouts
+(``ir/``), the layout whose truth file is there is chosen. A MOTChallenge ``gt.txt`` (or
+``gt/gt.txt``) beside the frames takes precedence over the single-target files (its base is 1).
 
 Channels of a one-channel folder are decided from the first frame (grey = infrared,
 colour = visible) unless ``channel`` says otherwise. 16-bit infrared frames are read as
@@ -153,10 +153,26 @@ class _Spec:
 
 
 _PAIR_LAYOUTS = (
-    _Spec("rgbt234", "visible", "infrared", {"visible": ("visible.txt", "xywh"), "infrared": ("infrared.txt", "xywh")}),
-    _Spec("gtot", "v", "i", {"visible": ("groundTruth_v.txt", "xyxy"), "infrared": ("groundTruth_i.txt", "xyxy")}),
+    _Spec(
+        "rgbt234",
+        "visible",
+        "infrared",
+        {"visible": ("visible.txt", "xywh"), "infrared": ("infrared.txt", "xywh")},
+    ),
+    _Spec(
+        "gtot",
+        "v",
+        "i",
+        {"visible": ("groundTruth_v.txt", "xyxy"), "infrared": ("groundTruth_i.txt", "xyxy")},
+    ),
     _Spec("vot-rgbt", "color", "ir", {"both": ("groundtruth.txt", "xywh")}),
-    _Spec("vtuav", "rgb", "ir", {"visible": ("rgb.txt", "xywh"), "infrared": ("ir.txt", "xywh")}, sparse_every=10),
+    _Spec(
+        "vtuav",
+        "rgb",
+        "ir",
+        {"visible": ("rgb.txt", "xywh"), "infrared": ("ir.txt", "xywh")},
+        sparse_every=10,
+    ),
 )
 _ONE_CHANNEL_LAYOUTS = (
     _Spec("otb", "img", "img", {"both": ("groundtruth_rect.txt", "xywh")}, base=1.0),
@@ -196,9 +212,11 @@ class Sequence:
     ):
         self.path = path
         self.meta = meta or {}
-        """The sequence's ``scene.json`` (synthetic scenes: seed, visibility, attributes), read once; {} without one."""
+        """The sequence's ``scene.json`` (synthetic scenes: seed, visibility, attributes), read
+        once; {} without one."""
         self.warnings = warnings
-        """Things about the input worth saying that do not stop a run (truth rows that do not match the frames)."""
+        """Things about the input worth saying that do not stop a run (truth rows that do not
+        match the frames)."""
         self.name = path.name
         self.layout = layout
         self.sources = sources
@@ -252,7 +270,9 @@ class Sequence:
             infrared = self.ir_norm.apply(ir_raw)
             if self.ir_resize is not None:  # the source bytes no longer match: the sink re-encodes
                 self._check_size(index, "infrared", infrared, self.ir_resize)
-                infrared = cv2.resize(infrared, (self.width, self.height), interpolation=cv2.INTER_LINEAR)
+                infrared = cv2.resize(
+                    infrared, (self.width, self.height), interpolation=cv2.INTER_LINEAR
+                )
             else:
                 self._check_size(index, "infrared", infrared)
                 ir_enc = ir.encoded  # None for 16-bit frames (frames.py)
@@ -265,7 +285,9 @@ class Sequence:
             infrared_encoded=ir_enc,
         )
 
-    def _check_size(self, index: int, channel: str, img: np.ndarray, expect: tuple[int, int] | None = None) -> None:
+    def _check_size(
+        self, index: int, channel: str, img: np.ndarray, expect: tuple[int, int] | None = None
+    ) -> None:
         w, h = expect if expect is not None else (self.width, self.height)
         if img.shape[1] != w or img.shape[0] != h:
             raise InputError(
@@ -293,7 +315,9 @@ def _find_video(root: Path, stem: str) -> Path | None:
 def _images_or_error(folder: Path, channel: str, grey: bool = False) -> ImageListSource:
     paths = list_images(folder)
     if not paths:
-        raise InputError(f"empty sequence: no {channel} frames ({', '.join(IMAGE_EXTENSIONS)}) in {folder}")
+        raise InputError(
+            f"empty sequence: no {channel} frames ({', '.join(IMAGE_EXTENSIONS)}) in {folder}"
+        )
     return ImageListSource(paths, grey=grey)
 
 
@@ -309,7 +333,8 @@ def _find_mot_gt(root: Path, frames_dir: Path | None) -> Path | None:
 
 
 def _one_half(root: Path) -> tuple[_Spec, str, Path] | None:
-    """A two-channel layout of which only one channel's folder holds frames: (layout, channel, folder)."""
+    """A two-channel layout of which only one channel's folder holds frames: (layout, channel,
+    folder)."""
     found: list[tuple[_Spec, str, Path]] = []
     for s in _PAIR_LAYOUTS:
         for ch, name in (("visible", s.visible), ("infrared", s.infrared)):
@@ -393,7 +418,10 @@ def open_sequence(
         vd, idir = _find_dir(root, s.visible or ""), _find_dir(root, s.infrared or "")
         if vd is not None and idir is not None:
             spec = s
-            sources = {"visible": _images_or_error(vd, "visible"), "infrared": _images_or_error(idir, "infrared", grey=True)}
+            sources = {
+                "visible": _images_or_error(vd, "visible"),
+                "infrared": _images_or_error(idir, "infrared", grey=True),
+            }
             frames_dir = vd
             break
     if spec is None:
@@ -406,8 +434,12 @@ def open_sequence(
         if half is not None:
             spec, found_ch, frames_dir = half
             if channel is not None and channel != found_ch:
-                raise InputError(f"--channel {channel}: {root} holds only {found_ch} frames ({frames_dir})")
-            sources = {found_ch: ImageListSource(list_images(frames_dir), grey=found_ch == "infrared")}
+                raise InputError(
+                    f"--channel {channel}: {root} holds only {found_ch} frames ({frames_dir})"
+                )
+            sources = {
+                found_ch: ImageListSource(list_images(frames_dir), grey=found_ch == "infrared")
+            }
     if spec is None:
         for s in _ONE_CHANNEL_LAYOUTS:
             d = _find_dir(root, s.visible or "")
@@ -423,9 +455,13 @@ def open_sequence(
                 break
     if spec is None:
         if any(p.is_dir() for p in root.iterdir()) or not any(root.iterdir()):
-            found = ", ".join(sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())[:8]) or "nothing"
+            found = (
+                ", ".join(sorted(p.name + ("/" if p.is_dir() else "") for p in root.iterdir())[:8])
+                or "nothing"
+            )
             raise InputError(
-                f"unrecognised sequence layout in {root} (found {found}); looked for: " + "; ".join(LAYOUT_NAMES)
+                f"unrecognised sequence layout in {root} (found {found}); looked for: "
+                + "; ".join(LAYOUT_NAMES)
             )
         raise InputError(f"empty sequence: no frames in {root}")
 
@@ -450,8 +486,10 @@ def open_sequence(
         if align != "resize":
             (vw, vh), (iw, ih) = sizes["visible"], sizes["infrared"]
             raise InputError(
-                f"channels have different frame sizes: visible {vw}x{vh} ({sources['visible'].description}) "
-                f"vs infrared {iw}x{ih} ({sources['infrared'].description}); pass --align resize to scale "
+                f"channels have different frame sizes: visible {vw}x{vh} "
+                f"({sources['visible'].description}) "
+                f"vs infrared {iw}x{ih} ({sources['infrared'].description}); pass --align resize "
+                "to scale "
                 "infrared to the visible size"
             )
         ir_resize = sizes["infrared"]
@@ -463,19 +501,35 @@ def open_sequence(
         ir_norm = _percentile_norm(sources["infrared"])
 
     if gt_base is not None and gt_base not in (0, 1):
-        raise InputError(f"--gt-base must be 0 or 1 (the coordinate of the first pixel's corner); got {gt_base:g}")
+        raise InputError(
+            "--gt-base must be 0 or 1 (the coordinate of the first pixel's corner); got "
+            f"{gt_base:g}"
+        )
     warnings: list[str] = []
     truth = _load_truth(root, spec, frames_dir, n, gt_base, sources, warnings)
     if ir_resize is not None and "infrared" in truth.boxes and not truth.multi:
         sx, sy = size[0] / ir_resize[0], size[1] / ir_resize[1]
-        truth.boxes["infrared"] = {k: v * np.array([sx, sy, sx, sy]) for k, v in truth.boxes["infrared"].items()}
+        truth.boxes["infrared"] = {
+            k: v * np.array([sx, sy, sx, sy]) for k, v in truth.boxes["infrared"].items()
+        }
     init_file = root / "init.txt" if (root / "init.txt").is_file() else None
-    return Sequence(root, spec.name, sources, truth, ir_norm, size, ir_resize, init_file, read_scene_json(root, warnings),
-                    tuple(warnings))
+    return Sequence(
+        root,
+        spec.name,
+        sources,
+        truth,
+        ir_norm,
+        size,
+        ir_resize,
+        init_file,
+        read_scene_json(root, warnings),
+        tuple(warnings),
+    )
 
 
 def read_scene_json(folder: Path, warnings: list[str] | None = None) -> dict[str, object]:
-    """A sequence folder's ``scene.json`` as a dict ({} when there is none or it cannot be read)."""
+    """A sequence folder's ``scene.json`` as a dict ({} when there is none or it cannot be
+    read)."""
     import json
 
     f = Path(folder) / "scene.json"
@@ -485,7 +539,9 @@ def read_scene_json(folder: Path, warnings: list[str] | None = None) -> dict[str
         data = json.loads(f.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         if warnings is not None:
-            warnings.append(f"{f}: not readable as JSON ({type(exc).__name__}); its attributes are ignored")
+            warnings.append(
+                f"{f}: not readable as JSON ({type(exc).__name__}); its attributes are ignored"
+            )
         return {}
     return data if isinstance(data, dict) else {}
 
@@ -517,9 +573,18 @@ def _load_truth(
     if mot is not None:
         mt: MotTruth = parse_mot_truth(mot, n, base=1.0 if gt_base is None else gt_base)
         if mt.last_frame > n:
-            warnings.append(f"{mot} has rows up to frame {mt.last_frame} for a sequence of {n} frames (ignored)")
+            warnings.append(
+                f"{mot} has rows up to frame {mt.last_frame} for a sequence of {n} frames "
+                "(ignored)"
+            )
         boxes = {c: mt.boxes for c in sources}
-        return Truth(boxes, mt.visibility, {c: str(mot) for c in sources}, multi=True, distractors=mt.distractors)
+        return Truth(
+            boxes,
+            mt.visibility,
+            {c: str(mot) for c in sources},
+            multi=True,
+            distractors=mt.distractors,
+        )
     base = spec.base if gt_base is None else gt_base
     boxes: dict[str, dict[int, np.ndarray]] = {}
     files: dict[str, str] = {}
@@ -540,9 +605,19 @@ def _load_truth(
         want = -(-n // spec.sparse_every)
         if arr.shape[0] != want:
             every = f" (one every {spec.sparse_every} frames)" if spec.sparse_every > 1 else ""
-            fate = "the extra rows are ignored" if arr.shape[0] > want else "the frames past them have no truth"
-            warnings.append(f"{f} has {arr.shape[0]} rows for {n} frames{every}, {want} expected; {fate}")
-        arr = expand_sparse(arr, n, spec.sparse_every) if spec.sparse_every > 1 else fit_length(arr, n)
+            fate = (
+                "the extra rows are ignored"
+                if arr.shape[0] > want
+                else "the frames past them have no truth"
+            )
+            warnings.append(
+                f"{f} has {arr.shape[0]} rows for {n} frames{every}, {want} expected; {fate}"
+            )
+        arr = (
+            expand_sparse(arr, n, spec.sparse_every)
+            if spec.sparse_every > 1
+            else fit_length(arr, n)
+        )
         targets = ("visible", "infrared") if ch == "both" else (ch,)
         for c in targets:
             if c in sources:

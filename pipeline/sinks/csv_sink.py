@@ -29,7 +29,18 @@ from pipeline.sinks.rowfile import RowFile
 from pipeline.types import FrameResult
 
 TARGETS_HEADER = (
-    "frame", "id", "status", "x_px", "y_px", "w_px", "h_px", "source", "iterations", "rho", "model_update", "diagnostics",
+    "frame",
+    "id",
+    "status",
+    "x_px",
+    "y_px",
+    "w_px",
+    "h_px",
+    "source",
+    "iterations",
+    "rho",
+    "model_update",
+    "diagnostics",
     "decision",
 )
 
@@ -50,8 +61,8 @@ def _pairs(d: dict[str, float] | object) -> str:
 
 
 class CsvSink:
-    """Writes ``tracks.csv`` and ``targets.csv`` into a run folder, in whole rows at each checkpoint
-    (``pipeline.sinks.rowfile``)."""
+    """Writes ``tracks.csv`` and ``targets.csv`` into a run folder, in whole rows at each
+    checkpoint (``pipeline.sinks.rowfile``)."""
 
     def __init__(self, out_dir: Path):
         self._tracks = RowFile(out_dir / "tracks.csv")
@@ -66,13 +77,37 @@ class CsvSink:
         for t in result.targets:
             b = t.box
             if t.status.is_reported:
-                self._tw.writerow([f, t.id, _num(b.x + MOT_BASE), _num(b.y + MOT_BASE), _num(b.w), _num(b.h),
-                                   f"{t.confidence:.3f}", -1, -1, -1])
-            self._gw.writerow([
-                f, t.id, t.status.value, _num(b.x), _num(b.y), _num(b.w), _num(b.h), t.source,
-                _pairs(t.iterations), _num(t.rho) if not math.isnan(t.rho) else "", t.model_update,
-                _pairs(t.diagnostics), t.decision,
-            ])
+                self._tw.writerow(
+                    [
+                        f,
+                        t.id,
+                        _num(b.x + MOT_BASE),
+                        _num(b.y + MOT_BASE),
+                        _num(b.w),
+                        _num(b.h),
+                        f"{t.confidence:.3f}",
+                        -1,
+                        -1,
+                        -1,
+                    ]
+                )
+            self._gw.writerow(
+                [
+                    f,
+                    t.id,
+                    t.status.value,
+                    _num(b.x),
+                    _num(b.y),
+                    _num(b.w),
+                    _num(b.h),
+                    t.source,
+                    _pairs(t.iterations),
+                    _num(t.rho) if not math.isnan(t.rho) else "",
+                    t.model_update,
+                    _pairs(t.diagnostics),
+                    t.decision,
+                ]
+            )
 
     def checkpoint(self) -> None:
         """Write every row so far to disk (both files hold the same frames afterwards)."""
@@ -93,5 +128,7 @@ class CsvSink:
     def __enter__(self) -> CsvSink:
         return self
 
-    def __exit__(self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
+    def __exit__(
+        self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()

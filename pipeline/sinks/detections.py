@@ -25,8 +25,22 @@ from pipeline.io.groundtruth import MOT_BASE
 from pipeline.sinks.rowfile import RowFile
 from pipeline.stages.detection import Detections, Region
 
-ROI_HEADER = ("frame", "x_px", "y_px", "w_px", "h_px", "cx_px", "cy_px", "perimeter_px", "area_px", "aspect",
-              "c1_per_px", "c2", "accepted", "reason")
+ROI_HEADER = (
+    "frame",
+    "x_px",
+    "y_px",
+    "w_px",
+    "h_px",
+    "cx_px",
+    "cy_px",
+    "perimeter_px",
+    "area_px",
+    "aspect",
+    "c1_per_px",
+    "c2",
+    "accepted",
+    "reason",
+)
 
 
 class DetectionFiles:
@@ -43,7 +57,8 @@ class DetectionFiles:
         for r in d.regions:
             b = r.box
             conf = min(1.0, 1.0 / max(r.c2, 1.0))
-            self._det.add(f"{frame},-1,{b.x + MOT_BASE:.2f},{b.y + MOT_BASE:.2f},{b.w:.2f},{b.h:.2f},{conf:.3f},-1,-1,-1")
+            x, y = b.x + MOT_BASE, b.y + MOT_BASE
+            self._det.add(f"{frame},-1,{x:.2f},{y:.2f},{b.w:.2f},{b.h:.2f},{conf:.3f},-1,-1,-1")
         for r in (*d.regions, *d.rejected):
             self._w.writerow(_row(frame, r))
 
@@ -66,8 +81,22 @@ class DetectionFiles:
 
 def _row(frame: int, r: Region) -> list[object]:
     b = r.box
-    return [frame, f"{b.x:.1f}", f"{b.y:.1f}", f"{b.w:.1f}", f"{b.h:.1f}", f"{r.centroid[0]:.2f}", f"{r.centroid[1]:.2f}",
-            f"{r.perimeter_px:.1f}", r.area_px, f"{r.aspect:.3f}", f"{r.c1:.4f}", f"{r.c2:.3f}", int(r.accepted), r.reason]
+    return [
+        frame,
+        f"{b.x:.1f}",
+        f"{b.y:.1f}",
+        f"{b.w:.1f}",
+        f"{b.h:.1f}",
+        f"{r.centroid[0]:.2f}",
+        f"{r.centroid[1]:.2f}",
+        f"{r.perimeter_px:.1f}",
+        r.area_px,
+        f"{r.aspect:.3f}",
+        f"{r.c1:.4f}",
+        f"{r.c2:.3f}",
+        int(r.accepted),
+        r.reason,
+    ]
 
 
 class DetectionRecording:
@@ -82,16 +111,34 @@ class DetectionRecording:
         self.scale = 127.0 / max(min_std, 1e-6)
         self.path = path
         self.rec = rr.RecordingStream("dualtrack", recording_id=f"detect-{name}")
-        bp = rrb.Blueprint(rrb.Vertical(
-            rrb.Horizontal(rrb.Spatial2DView(origin=f"/{channel}", name="ROIs",
-                                             contents=[f"/{channel}/image", f"/{channel}/rois", f"/{channel}/rejected",
-                                                       f"/{channel}/roi_contours"]),
-                           rrb.Spatial2DView(origin=f"/{channel}", name="STDM",
-                                             contents=[f"/{channel}/std_map", f"/{channel}/rois"])),
-            rrb.TimeSeriesView(origin="/metrics", name="Detections per frame"), row_shares=[3, 1]))
+        bp = rrb.Blueprint(
+            rrb.Vertical(
+                rrb.Horizontal(
+                    rrb.Spatial2DView(
+                        origin=f"/{channel}",
+                        name="ROIs",
+                        contents=[
+                            f"/{channel}/image",
+                            f"/{channel}/rois",
+                            f"/{channel}/rejected",
+                            f"/{channel}/roi_contours",
+                        ],
+                    ),
+                    rrb.Spatial2DView(
+                        origin=f"/{channel}",
+                        name="STDM",
+                        contents=[f"/{channel}/std_map", f"/{channel}/rois"],
+                    ),
+                ),
+                rrb.TimeSeriesView(origin="/metrics", name="Detections per frame"),
+                row_shares=[3, 1],
+            )
+        )
         self.rec.save(str(path), default_blueprint=bp)
 
-    def write(self, frame: int, encoded: tuple[bytes, str] | None, image: np.ndarray, d: Detections) -> None:
+    def write(
+        self, frame: int, encoded: tuple[bytes, str] | None, image: np.ndarray, d: Detections
+    ) -> None:
         import cv2
 
         rr, c = self.rr, self.channel
@@ -99,21 +146,41 @@ class DetectionRecording:
         if encoded is not None:
             self.rec.log(f"{c}/image", rr.EncodedImage(contents=encoded[0], media_type=encoded[1]))
         else:
-            ok, jpg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 85])
-            self.rec.log(f"{c}/image", rr.EncodedImage(contents=jpg.tobytes(), media_type="image/jpeg"))
+            _, jpg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 85])
+            self.rec.log(
+                f"{c}/image", rr.EncodedImage(contents=jpg.tobytes(), media_type="image/jpeg")
+            )
         smap = np.clip(d.std_map * self.scale, 0, 255).astype(np.uint8)
-        ok, jpg = cv2.imencode(".jpg", smap, [cv2.IMWRITE_JPEG_QUALITY, 80])
-        self.rec.log(f"{c}/std_map", rr.EncodedImage(contents=jpg.tobytes(), media_type="image/jpeg"))
-        for name, regs, color in (("rois", d.regions, (60, 220, 60)), ("rejected", d.rejected, (230, 60, 60))):
+        _ok, jpg = cv2.imencode(".jpg", smap, [cv2.IMWRITE_JPEG_QUALITY, 80])
+        self.rec.log(
+            f"{c}/std_map", rr.EncodedImage(contents=jpg.tobytes(), media_type="image/jpeg")
+        )
+        for name, regs, color in (
+            ("rois", d.regions, (60, 220, 60)),
+            ("rejected", d.rejected, (230, 60, 60)),
+        ):
             if regs:
-                self.rec.log(f"{c}/{name}", rr.Boxes2D(
-                    array=np.array([r.box.as_tuple() for r in regs], np.float32), array_format=rr.Box2DFormat.XYWH,
-                    colors=[color] * len(regs),
-                    labels=[f"P={r.perimeter_px:.0f} C2={r.c2:.1f}" if r.accepted else r.reason for r in regs]))
+                self.rec.log(
+                    f"{c}/{name}",
+                    rr.Boxes2D(
+                        array=np.array([r.box.as_tuple() for r in regs], np.float32),
+                        array_format=rr.Box2DFormat.XYWH,
+                        colors=[color] * len(regs),
+                        labels=[
+                            f"P={r.perimeter_px:.0f} C2={r.c2:.1f}" if r.accepted else r.reason
+                            for r in regs
+                        ],
+                    ),
+                )
             else:
                 self.rec.log(f"{c}/{name}", rr.Clear(recursive=False))
         strips = [np.vstack([r.contour, r.contour[:1]]) for r in d.regions if len(r.contour) >= 2]
-        self.rec.log(f"{c}/roi_contours", rr.LineStrips2D(strips, colors=[(60, 220, 60)]) if strips else rr.Clear(recursive=False))
+        self.rec.log(
+            f"{c}/roi_contours",
+            rr.LineStrips2D(strips, colors=[(60, 220, 60)])
+            if strips
+            else rr.Clear(recursive=False),
+        )
         self.rec.log("metrics/detections", rr.Scalars(float(len(d.regions))))
 
     def checkpoint(self) -> None:

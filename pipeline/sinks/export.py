@@ -41,7 +41,8 @@ def _num(v: float) -> str:
 
 
 def export_lines(boxes: np.ndarray, fmt: str) -> list[str]:
-    """The lines of one sequence's export file in format ``fmt`` (``boxes``: (N, 4), NaN rows without output)."""
+    """The lines of one sequence's export file in format ``fmt`` (``boxes``: (N, 4), NaN rows
+    without output)."""
     if fmt not in EXPORT_FORMATS:
         raise ValueError(f"export format must be one of {EXPORT_FORMATS}; got {fmt!r}")
     out = []

@@ -14,10 +14,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from pipeline.eval.single import PRECISION_THRESHOLDS_PX, SUCCESS_THRESHOLDS  # noqa: E402
+from pipeline.eval.single import PRECISION_THRESHOLDS_PX, SUCCESS_THRESHOLDS
 
 
 def _color(i: int) -> tuple[float, float, float]:
@@ -53,7 +53,9 @@ def write_plots(out_dir: Path, curves: dict[int, dict[str, np.ndarray]], title: 
     return written
 
 
-def comparison_plots(out_dir: Path, series: dict[str, dict[str, np.ndarray]], title: str, prefix: str = "") -> list[Path]:
+def comparison_plots(
+    out_dir: Path, series: dict[str, dict[str, np.ndarray]], title: str, prefix: str = ""
+) -> list[Path]:
     """Precision and success plots with one curve per entry of ``series``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
@@ -61,7 +63,13 @@ def comparison_plots(out_dir: Path, series: dict[str, dict[str, np.ndarray]], ti
     order = sorted(series, key=lambda k: -np.nan_to_num(series[k]["precision"][20], nan=-1))
     for k, name in enumerate(order):
         p = series[name]["precision"]
-        ax.plot(PRECISION_THRESHOLDS_PX, p, color=_color(k), lw=1.5, label=f"{name} [{np.nan_to_num(p[20]):.3f}]")
+        ax.plot(
+            PRECISION_THRESHOLDS_PX,
+            p,
+            color=_color(k),
+            lw=1.5,
+            label=f"{name} [{np.nan_to_num(p[20]):.3f}]",
+        )
     ax.set_xlim(0, 50)
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("location error threshold [px]")
@@ -78,7 +86,13 @@ def comparison_plots(out_dir: Path, series: dict[str, dict[str, np.ndarray]], ti
     order = sorted(series, key=lambda k: -np.nan_to_num(np.mean(series[k]["success"]), nan=-1))
     for k, name in enumerate(order):
         s = series[name]["success"]
-        ax.plot(SUCCESS_THRESHOLDS, s, color=_color(k), lw=1.5, label=f"{name} [{np.nan_to_num(np.mean(s)):.3f}]")
+        ax.plot(
+            SUCCESS_THRESHOLDS,
+            s,
+            color=_color(k),
+            lw=1.5,
+            label=f"{name} [{np.nan_to_num(np.mean(s)):.3f}]",
+        )
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("overlap threshold")

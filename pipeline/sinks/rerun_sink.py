@@ -1,17 +1,18 @@
 """The Rerun recording (``run.rrd``): the only module that imports ``rerun``.
 
-Entity paths (docs/formats.md): ``visible/image``, ``infrared/image`` (the source JPEG/PNG
-bytes passed through as ``EncodedImage``; frames without source bytes, e.g. from a
-video, are JPEG-encoded once), ``visible/targets`` and ``infrared/targets`` (Boxes2D,
-class id = track id, label ``T<id> <status>``; occluded boxes, and merged targets other than the merge's
-foreground, are drawn with a thinner line), ``infrared/contours`` (LineStrips2D), ``events`` (TextLog), ``targets/<id>/status``
-(StateChange), ``targets/<id>/decision`` (StateChange ``case:why``, for trackers that report one), ``metrics/<id>/center_error_px`` (Scalars, when truth exists),
-``timing/<stage>_ms``, and the resolved config as a static ``config`` document. With
-ground truth, also ``visible/truth`` and ``infrared/truth`` (Boxes2D, each channel's own
-truth, white, label ``GT <id>``), ``metrics/<id>/iou`` (Scalars, beside the centre error)
-and ``targets/<id>/truth`` (StateChange ``overlap`` / ``failure`` / ``no-truth``, under the
-target's status, so a frame where the output misses the truth or is missing shows on the
-timeline), with a ``failure`` event where a failure starts.
+Entity paths (docs/formats.md): ``visible/image``, ``infrared/image`` (the source JPEG/PNG bytes
+passed through as ``EncodedImage``; frames without source bytes, e.g. from a video, are
+JPEG-encoded once), ``visible/targets`` and ``infrared/targets`` (Boxes2D, class id = track id,
+label ``T<id> <status>``; occluded boxes, and merged targets other than the merge's foreground, are
+drawn with a thinner line), ``infrared/contours`` (LineStrips2D), ``events`` (TextLog),
+``targets/<id>/status`` (StateChange), ``targets/<id>/decision`` (StateChange ``case:why``, for
+trackers that report one), ``metrics/<id>/center_error_px`` (Scalars, when truth exists),
+``timing/<stage>_ms``, and the resolved config as a static ``config`` document. With ground truth,
+also ``visible/truth`` and ``infrared/truth`` (Boxes2D, each channel's own truth, white, label ``GT
+<id>``), ``metrics/<id>/iou`` (Scalars, beside the centre error) and ``targets/<id>/truth``
+(StateChange ``overlap`` / ``failure`` / ``no-truth``, under the target's status, so a frame where
+the output misses the truth or is missing shows on the timeline), with a ``failure`` event where a
+failure starts.
 
 To keep logging well under 1 ms per frame pair, frames are buffered and written with
 ``send_columns`` at each checkpoint of the run loop (every ``batch_frames`` frames), which
@@ -41,8 +42,18 @@ from pipeline.types import FrameResult, FrameTruth, TargetStatus, TruthMatch
 APP_ID = "dualtrack"
 
 PALETTE = (
-    (230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48), (145, 30, 180),
-    (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212), (0, 128, 128), (220, 190, 255),
+    (230, 25, 75),
+    (60, 180, 75),
+    (255, 225, 25),
+    (0, 130, 200),
+    (245, 130, 48),
+    (145, 30, 180),
+    (70, 240, 240),
+    (240, 50, 230),
+    (210, 245, 60),
+    (250, 190, 212),
+    (0, 128, 128),
+    (220, 190, 255),
 )
 STATUS_COLORS = {
     TargetStatus.TENTATIVE: 0xAAAAAAFF,
@@ -53,7 +64,11 @@ STATUS_COLORS = {
     TargetStatus.LOST: 0xEF5350FF,
 }
 TRUTH_COLOR = (255, 255, 255)
-TRUTH_MATCH_COLORS = {TruthMatch.OVERLAP: 0x4CAF50FF, TruthMatch.FAILURE: 0xEF5350FF, TruthMatch.NO_TRUTH: 0x9E9E9EFF}
+TRUTH_MATCH_COLORS = {
+    TruthMatch.OVERLAP: 0x4CAF50FF,
+    TruthMatch.FAILURE: 0xEF5350FF,
+    TruthMatch.NO_TRUTH: 0x9E9E9EFF,
+}
 EVENT_LEVEL = {
     "failure": rr.TextLogLevel.WARN,
     "lost": rr.TextLogLevel.WARN,
@@ -72,18 +87,31 @@ def track_color(track_id: int) -> tuple[int, int, int]:
     return PALETTE[(track_id - 1) % len(PALETTE)]
 
 
-def blueprint(channels: tuple[str, ...], target_ids: list[int] | tuple[int, ...] = (), has_truth: bool = False
-              ) -> rrb.Blueprint:
-    """Default layout: the channels side by side (truth boxes with them), time series and events below; with
-    truth the centre error and the IoU of ``target_ids`` side by side."""
+def blueprint(
+    channels: tuple[str, ...],
+    target_ids: list[int] | tuple[int, ...] = (),
+    has_truth: bool = False,
+) -> rrb.Blueprint:
+    """Default layout: the channels side by side (truth boxes with them), time series and events
+    below; with truth the centre error and the IoU of ``target_ids`` side by side."""
     views = [rrb.Spatial2DView(origin=f"/{c}", name=c.capitalize()) for c in channels]
     series: list[rrb.View] = []
     if has_truth:
         ids = sorted(target_ids)
-        series.append(rrb.TimeSeriesView(origin="/metrics", name="Centre error [px]",
-                                         contents=["+ /metrics/**", *(f"- /metrics/{i}/iou" for i in ids)]))
-        series.append(rrb.TimeSeriesView(origin="/metrics", name="IoU with the truth",
-                                         contents=[f"+ /metrics/{i}/iou" for i in ids] or ["- /metrics/**"]))
+        series.append(
+            rrb.TimeSeriesView(
+                origin="/metrics",
+                name="Centre error [px]",
+                contents=["+ /metrics/**", *(f"- /metrics/{i}/iou" for i in ids)],
+            )
+        )
+        series.append(
+            rrb.TimeSeriesView(
+                origin="/metrics",
+                name="IoU with the truth",
+                contents=[f"+ /metrics/{i}/iou" for i in ids] or ["- /metrics/**"],
+            )
+        )
     bottom = rrb.Horizontal(
         *series,
         rrb.TextLogView(origin="/events", name="Events"),
@@ -91,7 +119,9 @@ def blueprint(channels: tuple[str, ...], target_ids: list[int] | tuple[int, ...]
         rrb.TimeSeriesView(origin="/timing", name="Stage time [ms]"),
         column_shares=[3] * len(series) + [3, 2, 2],
     )
-    return rrb.Blueprint(rrb.Vertical(rrb.Horizontal(*views), bottom, row_shares=[3, 2]), collapse_panels=True)
+    return rrb.Blueprint(
+        rrb.Vertical(rrb.Horizontal(*views), bottom, row_shares=[3, 2]), collapse_panels=True
+    )
 
 
 class RerunSink:
@@ -111,9 +141,13 @@ class RerunSink:
         self.cfg = cfg
         self.channels = channels
         self.path = path
-        self.rec = rr.RecordingStream(APP_ID, recording_id=f"{recording_name}-{uuid.uuid4().hex[:12]}")
+        self.rec = rr.RecordingStream(
+            APP_ID, recording_id=f"{recording_name}-{uuid.uuid4().hex[:12]}"
+        )
         self._blueprint_ids = tuple(sorted(target_ids))
-        self.rec.save(str(path), default_blueprint=blueprint(channels, self._blueprint_ids, has_truth))
+        self.rec.save(
+            str(path), default_blueprint=blueprint(channels, self._blueprint_ids, has_truth)
+        )
         self._match: dict[int, TruthMatch] = {}
         self._buf: dict[str, list] = defaultdict(list)
         self._frames: list[int] = []
@@ -128,25 +162,35 @@ class RerunSink:
             colors=np.array([STATUS_COLORS[st] for st in TargetStatus], np.uint32),
         )
         self._truth_config = rr.StateConfiguration(
-            values=[m.value for m in TruthMatch], labels=[m.value for m in TruthMatch],
+            values=[m.value for m in TruthMatch],
+            labels=[m.value for m in TruthMatch],
             colors=np.array([TRUTH_MATCH_COLORS[m] for m in TruthMatch], np.uint32),
         )
         self._log_static(target_ids, config, has_truth)
 
     # -- static ---------------------------------------------------------------------
-    def _log_static(self, target_ids: list[int], config: dict[str, object] | None, has_truth: bool) -> None:
+    def _log_static(
+        self, target_ids: list[int], config: dict[str, object] | None, has_truth: bool
+    ) -> None:
         self._has_truth = has_truth
         self.rec.log("/", rr.AnnotationContext([]), static=True)  # replaced as ids appear
         self._annotate(target_ids)
         if config is not None:
-            self.rec.log("config", rr.TextDocument(json.dumps(config, indent=2), media_type="text/plain"), static=True)
+            self.rec.log(
+                "config",
+                rr.TextDocument(json.dumps(config, indent=2), media_type="text/plain"),
+                static=True,
+            )
 
     def _annotate(self, ids: list[int]) -> None:
         new = [i for i in ids if i not in self._known_ids]
         if not new:
             return
         self._known_ids.update(new)
-        infos = [rr.AnnotationInfo(id=class_id(i), label=f"T{i}", color=track_color(i)) for i in sorted(self._known_ids)]
+        infos = [
+            rr.AnnotationInfo(id=class_id(i), label=f"T{i}", color=track_color(i))
+            for i in sorted(self._known_ids)
+        ]
         self.rec.log("/", rr.AnnotationContext(infos), static=True)
         for i in new:
             self.rec.log(
@@ -156,11 +200,17 @@ class RerunSink:
             )
             self.rec.log(f"targets/{i}/status", self._state_config, static=True)
             if self._has_truth:
-                self.rec.log(f"metrics/{i}/iou", rr.SeriesLines(colors=[track_color(i)], names=[f"T{i} IoU"]), static=True)
+                self.rec.log(
+                    f"metrics/{i}/iou",
+                    rr.SeriesLines(colors=[track_color(i)], names=[f"T{i} IoU"]),
+                    static=True,
+                )
                 self.rec.log(f"targets/{i}/truth", self._truth_config, static=True)
 
     # -- per frame --------------------------------------------------------------------
-    def write(self, frames: FramePair, result: FrameResult, truth: FrameTruth | None = None) -> None:
+    def write(
+        self, frames: FramePair, result: FrameResult, truth: FrameTruth | None = None
+    ) -> None:
         if self._closed:
             raise RuntimeError("RerunSink is closed")
         f = result.frame
@@ -172,7 +222,9 @@ class RerunSink:
             enc = getattr(frames, f"{ch}_encoded")
             if enc is None:
                 img = getattr(frames, ch)
-                ok, jpg = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, self.cfg.jpeg_quality])
+                _ok, jpg = cv2.imencode(
+                    ".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, self.cfg.jpeg_quality]
+                )
                 blob, media = jpg.tobytes(), "image/jpeg"
             else:
                 blob, media = enc.data, enc.media_type
@@ -180,13 +232,15 @@ class RerunSink:
         self._annotate([t.id for t in result.targets])
         shown = [t for t in result.targets if t.status != TargetStatus.LOST]
         boxes = [(t.box.cx, t.box.cy, t.box.w / 2, t.box.h / 2) for t in shown]
-        self._buf["boxes"].append((
-            f,
-            boxes,
-            [class_id(t.id) for t in shown],
-            [f"T{t.id} {t.status.value}" for t in shown],
-            [-1.0 if _drawn_thin(t) else -2.5 for t in shown],
-        ))
+        self._buf["boxes"].append(
+            (
+                f,
+                boxes,
+                [class_id(t.id) for t in shown],
+                [f"T{t.id} {t.status.value}" for t in shown],
+                [-1.0 if _drawn_thin(t) else -2.5 for t in shown],
+            )
+        )
         for t in shown:
             for name, ob in t.overlays.items():
                 self._buf[f"overlay:{name}"].append((f, t.id, ob))
@@ -212,8 +266,13 @@ class RerunSink:
         if truth is not None:
             for ch in self.channels:
                 tb = truth.boxes.get(ch, {})
-                self._buf[f"truth:{ch}"].append((f, [(b.cx, b.cy, b.w / 2, b.h / 2) for b in tb.values()],
-                                                 [f"GT {i}" for i in tb]))
+                self._buf[f"truth:{ch}"].append(
+                    (
+                        f,
+                        [(b.cx, b.cy, b.w / 2, b.h / 2) for b in tb.values()],
+                        [f"GT {i}" for i in tb],
+                    )
+                )
             for tid, e in truth.center_error_px.items():
                 if np.isfinite(e):
                     self._buf[f"metrics/{tid}/center_error_px"].append((f, float(e)))
@@ -222,13 +281,20 @@ class RerunSink:
             for tid, m in truth.match.items():
                 if self._match.get(tid) != m:
                     if m == TruthMatch.FAILURE:
-                        why = "no output" if not np.isfinite(truth.center_error_px.get(tid, np.inf)) else "IoU 0"
-                        self._buf["events"].append((f, f"[failure] T{tid}: {why} against the truth", "failure"))
+                        why = (
+                            "no output"
+                            if not np.isfinite(truth.center_error_px.get(tid, np.inf))
+                            else "IoU 0"
+                        )
+                        self._buf["events"].append(
+                            (f, f"[failure] T{tid}: {why} against the truth", "failure")
+                        )
                     self._match[tid] = m
                     self._buf[f"targets/{tid}/truth"].append((f, m.value))
         for stage, sec in result.stage_seconds.items():
             self._buf[f"timing/{stage}_ms"].append((f, sec * 1e3))
-        if len(self._frames) >= 4 * self.cfg.batch_frames:  # written at checkpoints; a bound when used alone
+        # written at checkpoints; a bound when used alone
+        if len(self._frames) >= 4 * self.cfg.batch_frames:
             self.flush()
 
     def flush(self) -> None:
@@ -242,14 +308,20 @@ class RerunSink:
                 continue
             idx = [rr.TimeColumn("frame", sequence=np.array([r[0] for r in rows], np.int64))]
             if key.endswith("/image"):
-                rec.send_columns(key, indexes=idx, columns=rr.EncodedImage.columns(
-                    blob=[r[1] for r in rows], media_type=[r[2] for r in rows]))
+                rec.send_columns(
+                    key,
+                    indexes=idx,
+                    columns=rr.EncodedImage.columns(
+                        blob=[r[1] for r in rows], media_type=[r[2] for r in rows]
+                    ),
+                )
             elif key == "boxes":
                 lengths = [len(r[1]) for r in rows]
                 flat = [b for r in rows for b in r[1]]
                 arr = np.asarray(flat, np.float32).reshape(-1, 4)
                 cols = rr.Boxes2D.columns(
-                    centers=arr[:, :2], half_sizes=arr[:, 2:],
+                    centers=arr[:, :2],
+                    half_sizes=arr[:, 2:],
                     class_ids=np.asarray([c for r in rows for c in r[2]], np.uint16),
                     labels=[s for r in rows for s in r[3]],
                     radii=np.asarray([x for r in rows for x in r[4]], np.float32),
@@ -260,7 +332,9 @@ class RerunSink:
                 lengths = [len(r[1]) for r in rows]
                 arr = np.asarray([b for r in rows for b in r[1]], np.float32).reshape(-1, 4)
                 cols = rr.Boxes2D.columns(
-                    centers=arr[:, :2], half_sizes=arr[:, 2:], labels=[s for r in rows for s in r[2]],
+                    centers=arr[:, :2],
+                    half_sizes=arr[:, 2:],
+                    labels=[s for r in rows for s in r[2]],
                     colors=np.tile(np.asarray(TRUTH_COLOR, np.uint8), (len(arr), 1)),
                     radii=np.full(len(arr), -1.0, np.float32),
                 ).partition(lengths)
@@ -269,11 +343,20 @@ class RerunSink:
                 name = key.split(":", 1)[1]
                 frames_sorted = sorted({r[0] for r in rows})
                 per = {fr: [r for r in rows if r[0] == fr] for fr in frames_sorted}
-                arr = np.asarray([[r[2].cx, r[2].cy, r[2].w / 2, r[2].h / 2] for fr in frames_sorted for r in per[fr]],
-                                 np.float32).reshape(-1, 4)
+                arr = np.asarray(
+                    [
+                        [r[2].cx, r[2].cy, r[2].w / 2, r[2].h / 2]
+                        for fr in frames_sorted
+                        for r in per[fr]
+                    ],
+                    np.float32,
+                ).reshape(-1, 4)
                 cols = rr.Boxes2D.columns(
-                    centers=arr[:, :2], half_sizes=arr[:, 2:],
-                    class_ids=np.asarray([class_id(r[1]) for fr in frames_sorted for r in per[fr]], np.uint16),
+                    centers=arr[:, :2],
+                    half_sizes=arr[:, 2:],
+                    class_ids=np.asarray(
+                        [class_id(r[1]) for fr in frames_sorted for r in per[fr]], np.uint16
+                    ),
                     radii=np.full(len(arr), -0.75, np.float32),
                 ).partition([len(per[fr]) for fr in frames_sorted])
                 oidx = [rr.TimeColumn("frame", sequence=np.asarray(frames_sorted, np.int64))]
@@ -287,24 +370,43 @@ class RerunSink:
                     strips=[s for r in rows for s in r[1]],
                     class_ids=np.asarray([c for r in rows for c in r[2]], np.uint16),
                 ).partition(lengths)
-                target = "infrared/contours" if "infrared" in self.channels else f"{self.channels[0]}/contours"
+                target = (
+                    "infrared/contours"
+                    if "infrared" in self.channels
+                    else f"{self.channels[0]}/contours"
+                )
                 rec.send_columns(target, indexes=idx, columns=cols)
             elif key == "events":
-                rec.send_columns("events", indexes=idx, columns=rr.TextLog.columns(
-                    text=[r[1] for r in rows],
-                    level=[EVENT_LEVEL.get(r[2], rr.TextLogLevel.INFO) for r in rows]))
+                rec.send_columns(
+                    "events",
+                    indexes=idx,
+                    columns=rr.TextLog.columns(
+                        text=[r[1] for r in rows],
+                        level=[EVENT_LEVEL.get(r[2], rr.TextLogLevel.INFO) for r in rows],
+                    ),
+                )
             elif key.endswith("/status") or key.endswith("/truth") or key.endswith("/decision"):
-                rec.send_columns(key, indexes=idx, columns=rr.StateChange.columns(state=[r[1] for r in rows]))
+                rec.send_columns(
+                    key, indexes=idx, columns=rr.StateChange.columns(state=[r[1] for r in rows])
+                )
             else:
-                rec.send_columns(key, indexes=idx, columns=rr.Scalars.columns(
-                    scalars=np.asarray([r[1] for r in rows], np.float64)))
+                rec.send_columns(
+                    key,
+                    indexes=idx,
+                    columns=rr.Scalars.columns(
+                        scalars=np.asarray([r[1] for r in rows], np.float64)
+                    ),
+                )
 
     def checkpoint(self) -> None:
-        """Write the buffered frames and wait until they reach the file (a killed run keeps them)."""
+        """Write the buffered frames and wait until they reach the file (a killed run keeps
+        them)."""
         try:
             self.flush()
             self.rec.flush(timeout_sec=10.0)
-        except RuntimeError as exc:  # the SDK's file writer stopped (a full disk, a removed folder)
+        except (
+            RuntimeError
+        ) as exc:  # the SDK's file writer stopped (a full disk, a removed folder)
             raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
 
     def close(self) -> None:
@@ -314,8 +416,11 @@ class RerunSink:
         try:
             try:
                 self.flush()
-                if self._has_truth and tuple(sorted(self._known_ids)) != self._blueprint_ids:  # ids born in the run
-                    self.rec.send_blueprint(blueprint(self.channels, sorted(self._known_ids), True))
+                # ids born in the run
+                if self._has_truth and tuple(sorted(self._known_ids)) != self._blueprint_ids:
+                    self.rec.send_blueprint(
+                        blueprint(self.channels, sorted(self._known_ids), True)
+                    )
             finally:
                 self._closed = True
                 try:
@@ -328,7 +433,9 @@ class RerunSink:
     def __enter__(self) -> RerunSink:
         return self
 
-    def __exit__(self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
+    def __exit__(
+        self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
 

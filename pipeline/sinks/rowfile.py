@@ -17,8 +17,8 @@ from pipeline.errors import OutputError, describe_os_error
 
 
 class RowFile:
-    """One text file of rows (``\\n``-terminated lines), written at checkpoints (unbuffered, so a failed write
-    leaves nothing pending that a later flush could half-write)."""
+    """One text file of rows (``\\n``-terminated lines), written at checkpoints (unbuffered, so a
+    failed write leaves nothing pending that a later flush could half-write)."""
 
     def __init__(self, path: Path, header: str | None = None):
         self.path = Path(path)
@@ -38,11 +38,13 @@ class RowFile:
         self._rows.append(row + "\n")
 
     def write(self, text: str) -> None:
-        """Queue text that ends with a line end (``csv.writer(rowfile)`` writes its rows this way)."""
+        """Queue text that ends with a line end (``csv.writer(rowfile)`` writes its rows this
+        way)."""
         self._rows.append(text)
 
     def checkpoint(self) -> None:
-        """Write the queued rows; on failure the file is truncated back and :class:`OutputError` is raised."""
+        """Write the queued rows; on failure the file is truncated back and :class:`OutputError` is
+        raised."""
         if not self._rows or self._fd is None:
             return
         data = "".join(self._rows).encode("utf-8")
@@ -53,7 +55,8 @@ class RowFile:
         try:
             while done < len(data):
                 n = os.write(self._fd, view[done:])
-                if n == 0:  # a file system that reports a full disk as a write of nothing: no retry can help
+                # a file system that reports a full disk as a write of nothing: no retry helps
+                if n == 0:
                     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
                 done += n
         except OSError as exc:
@@ -66,7 +69,8 @@ class RowFile:
         self._pos += len(data)
 
     def rollback(self) -> None:
-        """Undo the last checkpoint (the run loop's checkpoint failed after this file's part of it succeeded)."""
+        """Undo the last checkpoint (the run loop's checkpoint failed after this file's part of it
+        succeeded)."""
         if self._fd is None:
             return
         try:
@@ -77,7 +81,8 @@ class RowFile:
             pass
 
     def close(self) -> None:
-        """Write what is queued and close the file (a failure to write still closes it, then raises)."""
+        """Write what is queued and close the file (a failure to write still closes it, then
+        raises)."""
         if self._fd is None:
             return
         try:

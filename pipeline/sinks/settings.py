@@ -26,4 +26,3 @@ class RerunConfig(Section):
 
     batch_frames: int = param(16, ge=1, le=1000)
     jpeg_quality: int = param(90, ge=1, le=100)
-

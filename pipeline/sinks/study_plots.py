@@ -7,24 +7,38 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 
-def purity_figure(path: Path, matrices: dict[str, np.ndarray], routes: np.ndarray,
-                  paper: dict[str, list[float]]) -> Path:
+def purity_figure(
+    path: Path, matrices: dict[str, np.ndarray], routes: np.ndarray, paper: dict[str, list[float]]
+) -> Path:
     """The purity matrices (one panel per association mode) and the routes of one run."""
     fig, axes = plt.subplots(1, len(matrices) + 1, figsize=(4.2 * (len(matrices) + 1), 4), dpi=100)
     for ax, (mode, m) in zip(axes, matrices.items(), strict=False):
         ax.imshow(m, vmin=0, vmax=1, cmap="viridis")
         for i in range(m.shape[0]):
             for j in range(m.shape[1]):
-                ax.text(j, i, f"{m[i, j]:.2f}", ha="center", va="center", color="w" if m[i, j] < 0.6 else "k", fontsize=9)
+                ax.text(
+                    j,
+                    i,
+                    f"{m[i, j]:.2f}",
+                    ha="center",
+                    va="center",
+                    color="w" if m[i, j] < 0.6 else "k",
+                    fontsize=9,
+                )
         ax.set_xticks(range(m.shape[1]), [f"track {j + 1}" for j in range(m.shape[1])], fontsize=8)
-        ax.set_yticks(range(m.shape[0]), [f"target {i + 1}" for i in range(m.shape[0])], fontsize=8)
+        ax.set_yticks(
+            range(m.shape[0]), [f"target {i + 1}" for i in range(m.shape[0])], fontsize=8
+        )
         ref = paper.get(mode)
-        ax.set_title(f"{mode}: mean diagonal {np.trace(m) / m.shape[0]:.3f}"
-                     + (f"\n(paper {np.mean(ref):.3f})" if ref else "\n"), fontsize=10)
+        ax.set_title(
+            f"{mode}: mean diagonal {np.trace(m) / m.shape[0]:.3f}"
+            + (f"\n(paper {np.mean(ref):.3f})" if ref else "\n"),
+            fontsize=10,
+        )
     ax = axes[-1]
     for i, r in enumerate(routes):
         ax.plot(r[:, 0], r[:, 1], lw=1.5, label=f"target {i + 1}")
@@ -40,7 +54,9 @@ def purity_figure(path: Path, matrices: dict[str, np.ndarray], routes: np.ndarra
     return path
 
 
-def radar_figures(out_dir: Path, series: dict[str, dict[str, np.ndarray]], title: str) -> list[Path]:
+def radar_figures(
+    out_dir: Path, series: dict[str, dict[str, np.ndarray]], title: str
+) -> list[Path]:
     """RMS position and velocity error over time, one curve per algorithm (the CHNN study)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
@@ -91,16 +107,33 @@ def radar_sensitivity_figure(path: Path, rows: list[dict], paper: dict) -> Path:
         sel = sorted((r for r in rows if r["acc_std"] == acc), key=lambda r: r["dt_s"])
         dts = [r["dt_s"] for r in sel]
         for alg in ("alg1", "alg2", "alg3"):
-            line, = ax.plot(dts, [r["single"][alg]["pos"] for r in sel], "o-", lw=1.3, label=f"{alg} 2-D")
-            ax.axhline(paper["single"][alg]["pos"], color=line.get_color(), ls=":", lw=1,
-                       label=f"paper {alg} {paper['single'][alg]['pos']:.0f} m")
-        ax.plot(dts, [r["single"]["alg1"]["pos_per_axis"] for r in sel], "s--", lw=1.1, color="k",
-                label="alg1 per axis")
+            (line,) = ax.plot(
+                dts, [r["single"][alg]["pos"] for r in sel], "o-", lw=1.3, label=f"{alg} 2-D"
+            )
+            ax.axhline(
+                paper["single"][alg]["pos"],
+                color=line.get_color(),
+                ls=":",
+                lw=1,
+                label=f"paper {alg} {paper['single'][alg]['pos']:.0f} m",
+            )
+        ax.plot(
+            dts,
+            [r["single"]["alg1"]["pos_per_axis"] for r in sel],
+            "s--",
+            lw=1.1,
+            color="k",
+            label="alg1 per axis",
+        )
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("sampling period [s]")
-        ax.set_title("paper's Q (20 m position noise)" if acc == 0 else f"Q + white acceleration {acc:g} m/s²",
-                     fontsize=10)
+        ax.set_title(
+            "paper's Q (20 m position noise)"
+            if acc == 0
+            else f"Q + white acceleration {acc:g} m/s²",
+            fontsize=10,
+        )
         ax.grid(alpha=0.3, which="both")
     axes[0].set_ylabel("RMS position error, single target [m]")
     axes[-1].legend(fontsize=7, ncol=2)

@@ -110,9 +110,9 @@ class AppearanceConfig(Section):
         rate compounded over them (ECO's sparse update), >= 1; default 1. Increasing it
         saves the cost of learning and makes the filter slower to follow a change.
     scale_every_frames : int
-        The tracker estimates the scale, and blends a frame into the scale filter (at the rate compounded over
-        them), every this many frames, >= 1; default 1. Increasing it saves most of the scale filter's cost (about
-        a fifth of the tracker's) and follows a size change later.
+        The tracker estimates the scale, and blends a frame into the scale filter (at the rate
+        compounded over them), every this many frames, >= 1; default 1. Increasing it saves most of
+        the scale filter's cost (about a fifth of the tracker's) and follows a size change later.
     """
 
     section = "appearance"
@@ -142,12 +142,13 @@ class AppearanceConfig(Section):
     scale_every_frames: int = param(1, ge=1)
 
 
-# ---------------------------------------------------------------------------------------------- features
+# ---------------------------------------------------------------------------------------- features
 
 
 @numba.njit(cache=True, inline="always", nogil=True)
 def _orientation(gx: float, gy: float) -> float:  # pragma: no cover (compiled)
-    """Unsigned gradient orientation in [0, pi), by a polynomial atan (error under 0.002 rad; a bin is 0.35)."""
+    """Unsigned gradient orientation in [0, pi), by a polynomial atan (error under 0.002 rad; a bin
+    is 0.35)."""
     ax, ay = abs(gx), abs(gy)
     mx, mn = (ax, ay) if ax >= ay else (ay, ax)
     a = mn / mx if mx > 0.0 else 0.0
@@ -161,11 +162,15 @@ def _orientation(gx: float, gy: float) -> float:  # pragma: no cover (compiled)
 
 
 @numba.njit(cache=True, boundscheck=False, nogil=True)
-def _hog_cells(grey: np.ndarray, cell: int, bins: int, clip: float) -> np.ndarray:  # pragma: no cover (compiled)
-    """Normalised gradient-orientation histograms per cell of a float32 image (H, W), H and W multiples of cell."""
+def _hog_cells(
+    grey: np.ndarray, cell: int, bins: int, clip: float
+) -> np.ndarray:  # pragma: no cover (compiled)
+    """Normalised gradient-orientation histograms per cell of a float32 image (H, W), H and W
+    multiples of cell."""
     H, W = grey.shape
     hc, wc = H // cell, W // cell
-    # flat arrays and unsigned offsets: numba then tests no index for wrapping around (twice as fast, same sums)
+    # flat arrays and unsigned offsets: numba then tests no index for wrapping around (twice as
+    # fast, same sums)
     flat = np.zeros(hc * wc * bins, np.float32)
     g = grey.ravel()
     nb, wu, one = np.uint64(bins), np.uint64(W), np.uint64(1)
@@ -215,8 +220,11 @@ def _hog_cells(grey: np.ndarray, cell: int, bins: int, clip: float) -> np.ndarra
 
 
 def hog(grey: np.ndarray, cfg: AppearanceConfig) -> np.ndarray:
-    """``(H/cell, W/cell, hog_bins)`` float32 gradient-orientation features of a float32 image in [0, 1]."""
-    return _hog_cells(np.ascontiguousarray(grey, np.float32), cfg.cell_px, cfg.hog_bins, np.float32(cfg.hog_clip))
+    """``(H/cell, W/cell, hog_bins)`` float32 gradient-orientation features of a float32 image in
+    [0, 1]."""
+    return _hog_cells(
+        np.ascontiguousarray(grey, np.float32), cfg.cell_px, cfg.hog_bins, np.float32(cfg.hog_clip)
+    )
 
 
 def channel_names(cfg: AppearanceConfig, visible: bool, infrared: bool) -> tuple[str, ...]:
@@ -233,7 +241,8 @@ def channel_names(cfg: AppearanceConfig, visible: bool, infrared: bool) -> tuple
 
 
 def features(vis: np.ndarray | None, ir: np.ndarray | None, cfg: AppearanceConfig) -> np.ndarray:
-    """Per-cell features ``(Hc, Wc, C)`` float32 of patches already resized to a multiple of ``cell_px``.
+    """Per-cell features ``(Hc, Wc, C)`` float32 of patches already resized to a multiple of
+    ``cell_px``.
 
     ``vis`` is ``(H, W, 3)`` uint8 BGR or None, ``ir`` ``(H, W)`` uint8 or None; the
     channels are those of :func:`channel_names`, in that order.
@@ -263,12 +272,13 @@ def features(vis: np.ndarray | None, ir: np.ndarray | None, cfg: AppearanceConfi
     return np.ascontiguousarray(np.concatenate(parts, axis=2))
 
 
-# ---------------------------------------------------------------------------------------------- geometry
+# ---------------------------------------------------------------------------------------- geometry
 
 
 @dataclass(frozen=True)
 class Window:
-    """The search window in frame px and the template size it is resized to (px, multiples of the cell)."""
+    """The search window in frame px and the template size it is resized to (px, multiples of the
+    cell)."""
 
     box: BBox
     template: tuple[int, int]  # (width, height) px
@@ -279,38 +289,53 @@ class Window:
         return (self.box.w / self.template[0], self.box.h / self.template[1])
 
 
-def search_window(center: tuple[float, float], size: tuple[float, float], cfg: AppearanceConfig) -> Window:
+def search_window(
+    center: tuple[float, float], size: tuple[float, float], cfg: AppearanceConfig
+) -> Window:
     """The window of side ``size * (1 + padding)`` centred on ``center`` and its template size."""
     w, h = size[0] * (1 + cfg.padding), size[1] * (1 + cfg.padding)
     longer = max(w, h)
-    cells_w = max(int(round(cfg.template_cells * w / longer)), 4)
-    cells_h = max(int(round(cfg.template_cells * h / longer)), 4)
-    return Window(BBox.from_center(center[0], center[1], w, h), (cells_w * cfg.cell_px, cells_h * cfg.cell_px))
+    cells_w = max(round(cfg.template_cells * w / longer), 4)
+    cells_h = max(round(cfg.template_cells * h / longer), 4)
+    return Window(
+        BBox.from_center(center[0], center[1], w, h),
+        (cells_w * cfg.cell_px, cells_h * cfg.cell_px),
+    )
 
 
 def crop(image: np.ndarray, box: BBox, out_size: tuple[int, int]) -> np.ndarray:
-    """``box`` (frame px, may extend past the border: replicated) resampled to ``out_size`` (w, h)."""
+    """``box`` (frame px, may extend past the border: replicated) resampled to ``out_size`` (w,
+    h)."""
     sx, sy = box.w / out_size[0], box.h / out_size[1]
-    M = np.array([[sx, 0.0, box.x + 0.5 * sx - 0.5], [0.0, sy, box.y + 0.5 * sy - 0.5]], np.float64)
+    M = np.array(
+        [[sx, 0.0, box.x + 0.5 * sx - 0.5], [0.0, sy, box.y + 0.5 * sy - 0.5]], np.float64
+    )
     interp = cv2.INTER_AREA if min(sx, sy) > 1.5 else cv2.INTER_LINEAR
     if interp == cv2.INTER_AREA:  # downscale: crop with a margin, then area-resize (no aliasing)
         H, W = image.shape[:2]
         x0, y0 = int(np.floor(box.x)), int(np.floor(box.y))
         x1, y1 = int(np.ceil(box.x2)), int(np.ceil(box.y2))
         pad = [max(-y0, 0), max(y1 - H, 0), max(-x0, 0), max(x1 - W, 0)]
-        sub = image[max(y0, 0):min(y1, H), max(x0, 0):min(x1, W)]
+        sub = image[max(y0, 0) : min(y1, H), max(x0, 0) : min(x1, W)]
         if sub.size == 0:
             return np.zeros((out_size[1], out_size[0], *image.shape[2:]), image.dtype)
         if any(pad):
             sub = cv2.copyMakeBorder(sub, *pad, cv2.BORDER_REPLICATE)
         return cv2.resize(sub, out_size, interpolation=cv2.INTER_AREA)
-    return cv2.warpAffine(image, M, out_size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                          borderMode=cv2.BORDER_REPLICATE)
+    return cv2.warpAffine(
+        image,
+        M,
+        out_size,
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
 
 
 @cache
 def _hann(h: int, w: int) -> np.ndarray:
-    return (np.outer(np.hanning(h + 2)[1:-1], np.hanning(w + 2)[1:-1])).astype(np.float32)[..., None]
+    return (np.outer(np.hanning(h + 2)[1:-1], np.hanning(w + 2)[1:-1])).astype(np.float32)[
+        ..., None
+    ]
 
 
 @cache
@@ -322,13 +347,13 @@ def _label_fft(h: int, w: int, sigma_y: float, sigma_x: float) -> np.ndarray:
     return np.fft.rfft2(g)
 
 
-# ---------------------------------------------------------------------------------------------- the model
+# --------------------------------------------------------------------------------------- the model
 
 
 @dataclass(frozen=True)
 class AppearanceModel:
-    """A learned filter pair: translation (``num``, ``den``) and scale (``s_num``, ``s_den``), and the target size
-    they were learned at (frame px)."""
+    """A learned filter pair: translation (``num``, ``den``) and scale (``s_num``, ``s_den``), and
+    the target size they were learned at (frame px)."""
 
     num: np.ndarray  # (Hc, Wc//2+1, C) complex
     den: np.ndarray  # (Hc, Wc//2+1) real
@@ -344,33 +369,42 @@ class AppearanceModel:
 
 @dataclass(frozen=True)
 class Detection:
-    """Where the filter finds the target: centre (frame px), its peak and PSR, and the scale filter's size."""
+    """Where the filter finds the target: centre (frame px), its peak and PSR, and the scale
+    filter's size."""
 
     center: tuple[float, float]
     peak: float
     psr: float
     size: tuple[float, float]
     scale_factor: float
-    support: tuple[float, float] = (float("nan"), float("nan"))  # (visible, IR): each channel's PSR at the peak
+    support: tuple[float, float] = (
+        float("nan"),
+        float("nan"),
+    )  # (visible, IR): each channel's PSR at the peak
     response: np.ndarray | None = None
 
 
-def _patches(vis: np.ndarray | None, ir: np.ndarray | None, box: BBox, size: tuple[int, int]
-             ) -> tuple[np.ndarray | None, np.ndarray | None]:
-    return (crop(vis, box, size) if vis is not None else None, crop(ir, box, size) if ir is not None else None)
+def _patches(
+    vis: np.ndarray | None, ir: np.ndarray | None, box: BBox, size: tuple[int, int]
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    return (
+        crop(vis, box, size) if vis is not None else None,
+        crop(ir, box, size) if ir is not None else None,
+    )
 
 
 def channel_groups(cfg: AppearanceConfig, visible: bool, infrared: bool) -> np.ndarray:
-    """Group index per feature channel: visible gradients, visible colour, IR gradients, IR intensity."""
+    """Group index per feature channel: visible gradients, visible colour, IR gradients, IR
+    intensity."""
     names = channel_names(cfg, visible, infrared)
     kind = {"vis-hog": 0, "vis-L": 1, "vis-a": 1, "vis-b": 1, "ir-hog": 2, "ir-I": 3}
     return np.array([kind[n.rstrip("0123456789")] for n in names])
 
 
 def group_gains(f: np.ndarray, groups: np.ndarray) -> np.ndarray:
-    """Per-channel gains that give every feature group the same energy per cell in ``f`` (the first frame's
-    window): a group's gain is ``1 / rms`` of its channels, so that the IR's heat counts as much as the
-    visible gradients whatever the contrast of either."""
+    """Per-channel gains that give every feature group the same energy per cell in ``f`` (the first
+    frame's window): a group's gain is ``1 / rms`` of its channels, so that the IR's heat counts as
+    much as the visible gradients whatever the contrast of either."""
     gains = np.ones(f.shape[2], np.float32)
     for g in np.unique(groups):
         sel = groups == g
@@ -379,9 +413,11 @@ def group_gains(f: np.ndarray, groups: np.ndarray) -> np.ndarray:
     return gains
 
 
-def _translation_spectra(vis, ir, win: Window, cfg: AppearanceConfig, gains: np.ndarray | None = None
-                         ) -> tuple[np.ndarray, np.ndarray]:
-    """The windowed features' spectra and the gains applied (``gains`` None: computed from these features)."""
+def _translation_spectra(
+    vis, ir, win: Window, cfg: AppearanceConfig, gains: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The windowed features' spectra and the gains applied (``gains`` None: computed from these
+    features)."""
     v, i = _patches(vis, ir, win.box, win.template)
     f = features(v, i, cfg)
     groups = channel_groups(cfg, vis is not None, ir is not None)
@@ -389,7 +425,8 @@ def _translation_spectra(vis, ir, win: Window, cfg: AppearanceConfig, gains: np.
         gains = group_gains(f, groups) if cfg.balance_groups else np.ones(f.shape[2], np.float32)
     g = f * gains
     if cfg.balance_groups and cfg.intensity_clip > 0:
-        # a far hotter (or brighter) neighbour entering the window must not outweigh the target by its energy
+        # a far hotter (or brighter) neighbour entering the window must not outweigh the target by
+        # its energy
         lev = (groups == 1) | (groups == 3)
         g[..., lev] = np.clip(g[..., lev], -cfg.intensity_clip, cfg.intensity_clip)
     return np.fft.rfft2(g * _hann(f.shape[0], f.shape[1]), axes=(0, 1)), gains
@@ -407,18 +444,32 @@ def _scale_window(count: int) -> np.ndarray:
 
 @cache
 def _scale_label_fft(count: int) -> np.ndarray:
-    """Spectrum of the scale label: a Gaussian over the scales, width sqrt(S) / 4 (DSST), peaked at index 0."""
+    """Spectrum of the scale label: a Gaussian over the scales, width sqrt(S) / 4 (DSST), peaked at
+    index 0."""
     n = np.arange(count, dtype=np.float64) - count // 2
     g = np.exp(-0.5 * (n / max(np.sqrt(count) / 4.0, 0.5)) ** 2)
     return np.fft.rfft(np.fft.ifftshift(g))
 
 
 @numba.njit(cache=True, boundscheck=False, nogil=True)
-def _scale_hog(img: np.ndarray, ox: float, oy: float, cx: float, cy: float, w: float, h: float, factors: np.ndarray,
-               tw: int, th: int, cell: int, bins: int, clip: float) -> np.ndarray:  # pragma: no cover (compiled)
-    """Gradient features of the target at every scale: (d, S), each column the HOG of a ``th x tw`` template
-    sampled bilinearly (from the smoothed region ``img`` whose corner is frame px (ox, oy)) over the box of
-    size (w, h) * factor centred on (cx, cy)."""
+def _scale_hog(
+    img: np.ndarray,
+    ox: float,
+    oy: float,
+    cx: float,
+    cy: float,
+    w: float,
+    h: float,
+    factors: np.ndarray,
+    tw: int,
+    th: int,
+    cell: int,
+    bins: int,
+    clip: float,
+) -> np.ndarray:  # pragma: no cover (compiled)
+    """Gradient features of the target at every scale: (d, S), each column the HOG of a ``th x tw``
+    template sampled bilinearly (from the smoothed region ``img`` whose corner is frame px (ox,
+    oy)) over the box of size (w, h) * factor centred on (cx, cy)."""
     H, W = img.shape
     S = factors.shape[0]
     d = (th // cell) * (tw // cell) * bins
@@ -447,20 +498,26 @@ def _scale_hog(img: np.ndarray, ox: float, oy: float, cx: float, cy: float, w: f
 
 
 def scale_template(size: tuple[float, float], cfg: AppearanceConfig) -> tuple[int, int]:
-    """(w, h) px of the scale filter's template for a target of ``size``: about ``scale_template_px`` square,
-    the target's aspect, whole cells."""
+    """(w, h) px of the scale filter's template for a target of ``size``: about
+    ``scale_template_px`` square, the target's aspect, whole cells."""
     t = cfg.scale_template_px
     aspect = size[0] / max(size[1], 1e-6)
-    tw = max(int(round(t * np.sqrt(aspect) / cfg.cell_px)), 2) * cfg.cell_px
-    th = max(int(round(t / np.sqrt(aspect) / cfg.cell_px)), 2) * cfg.cell_px
+    tw = max(round(t * np.sqrt(aspect) / cfg.cell_px), 2) * cfg.cell_px
+    th = max(round(t / np.sqrt(aspect) / cfg.cell_px), 2) * cfg.cell_px
     return tw, th
 
 
-def _scale_samples(vis, ir, center: tuple[float, float], size: tuple[float, float], cfg: AppearanceConfig,
-                   template: tuple[int, int]) -> np.ndarray:
-    """``(d, S)`` features of the target at every scale, windowed over the scales: the gradient histogram of the
-    infrared frame (the visible luminance without one) on a ``template`` (w, h) px resampling, one compiled pass
-    over all scales."""
+def _scale_samples(
+    vis,
+    ir,
+    center: tuple[float, float],
+    size: tuple[float, float],
+    cfg: AppearanceConfig,
+    template: tuple[int, int],
+) -> np.ndarray:
+    """``(d, S)`` features of the target at every scale, windowed over the scales: the gradient
+    histogram of the infrared frame (the visible luminance without one) on a ``template`` (w, h) px
+    resampling, one compiled pass over all scales."""
     tw, th = template
     factors = _scale_factors(cfg.scale_count, cfg.scale_step)
     sources = []
@@ -481,41 +538,82 @@ def _scale_samples(vis, ir, center: tuple[float, float], size: tuple[float, floa
         down = size[1] / th  # anti-alias before sampling down
         if down > 1.5:
             region = cv2.GaussianBlur(region, (0, 0), 0.5 * down)
-        parts.append(_scale_hog(region, float(x0), float(y0), float(center[0]), float(center[1]), float(size[0]),
-                                float(size[1]), factors, tw, th, cfg.cell_px, cfg.hog_bins, np.float32(cfg.hog_clip)))
+        parts.append(
+            _scale_hog(
+                region,
+                float(x0),
+                float(y0),
+                float(center[0]),
+                float(center[1]),
+                float(size[0]),
+                float(size[1]),
+                factors,
+                tw,
+                th,
+                cfg.cell_px,
+                cfg.hog_bins,
+                np.float32(cfg.hog_clip),
+            )
+        )
     S = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=0)
     return S * _scale_window(cfg.scale_count)[None, :]
 
 
 def _check_channels(vis_used: bool, ir_used: bool, channels: tuple[bool, bool]) -> None:
     if channels != (vis_used, ir_used):
-        raise ValueError(f"the model was built from channels {channels}, the frame gives {(vis_used, ir_used)}")
+        raise ValueError(
+            f"the model was built from channels {channels}, the frame gives {(vis_used, ir_used)}"
+        )
 
 
-def train(vis: np.ndarray | None, ir: np.ndarray | None, box: BBox, cfg: AppearanceConfig,
-          like: AppearanceModel | None = None, scale: bool = True) -> AppearanceModel:
-    """A new model of the target in ``box`` (frame px) of the frames (either may be None); with ``like``, on
-    that model's templates (so the two can be blended whatever the box's aspect); ``scale`` False leaves the scale
-    filter out (zeros)."""
+def train(
+    vis: np.ndarray | None,
+    ir: np.ndarray | None,
+    box: BBox,
+    cfg: AppearanceConfig,
+    like: AppearanceModel | None = None,
+    scale: bool = True,
+) -> AppearanceModel:
+    """A new model of the target in ``box`` (frame px) of the frames (either may be None); with
+    ``like``, on that model's templates (so the two can be blended whatever the box's aspect);
+    ``scale`` False leaves the scale filter out (zeros)."""
     win = search_window(box.center, (box.w, box.h), cfg)
     if like is not None:
         win = Window(win.box, like.template)
     F, gains = _translation_spectra(vis, ir, win, cfg, like.gains if like is not None else None)
-    Y = _label_fft(win.template[1] // cfg.cell_px, win.template[0] // cfg.cell_px, *_sigmas(box, win, cfg))
+    Y = _label_fft(
+        win.template[1] // cfg.cell_px, win.template[0] // cfg.cell_px, *_sigmas(box, win, cfg)
+    )
     num = np.conj(Y)[..., None] * F
     den = np.sum((F * np.conj(F)).real, axis=2)
     st = like.scale_template if like is not None else scale_template((box.w, box.h), cfg)
     if cfg.scale_filter and scale:
         Fs = np.fft.rfft(_scale_samples(vis, ir, box.center, (box.w, box.h), cfg, st), axis=1)
-        s_num, s_den = np.conj(_scale_label_fft(cfg.scale_count))[None, :] * Fs, np.sum((Fs * np.conj(Fs)).real, axis=0)
+        s_num, s_den = (
+            np.conj(_scale_label_fft(cfg.scale_count))[None, :] * Fs,
+            np.sum((Fs * np.conj(Fs)).real, axis=0),
+        )
     else:
-        s_num, s_den = np.zeros((1, cfg.scale_count // 2 + 1), complex), np.zeros(cfg.scale_count // 2 + 1)
-    return AppearanceModel(num, den, win.template, (box.w, box.h), s_num, s_den, (vis is not None, ir is not None), st,
-                           gains)
+        s_num, s_den = (
+            np.zeros((1, cfg.scale_count // 2 + 1), complex),
+            np.zeros(cfg.scale_count // 2 + 1),
+        )
+    return AppearanceModel(
+        num,
+        den,
+        win.template,
+        (box.w, box.h),
+        s_num,
+        s_den,
+        (vis is not None, ir is not None),
+        st,
+        gains,
+    )
 
 
 def _sigmas(box: BBox, win: Window, cfg: AppearanceConfig) -> tuple[float, float]:
-    """The label's width in cells: ``label_sigma_factor`` of the target's size in cells (KCF, DSST)."""
+    """The label's width in cells: ``label_sigma_factor`` of the target's size in cells (KCF,
+    DSST)."""
     fx, fy = win.frame_px
     tw, th = box.w / (fx * cfg.cell_px), box.h / (fy * cfg.cell_px)
     s = cfg.label_sigma_factor * np.sqrt(max(tw * th, 1.0))
@@ -523,7 +621,8 @@ def _sigmas(box: BBox, win: Window, cfg: AppearanceConfig) -> tuple[float, float
 
 
 def _peak_offset(r: np.ndarray) -> tuple[float, float, float, int, int]:
-    """Peak of a response map: (dy, dx) sub-cell displacement from the centre cell, value, and its cell."""
+    """Peak of a response map: (dy, dx) sub-cell displacement from the centre cell, value, and its
+    cell."""
     h, w = r.shape
     iy, ix = np.unravel_index(int(np.argmax(r)), r.shape)
     peak = float(r[iy, ix])
@@ -538,7 +637,8 @@ def _peak_offset(r: np.ndarray) -> tuple[float, float, float, int, int]:
 
 
 def psr(r: np.ndarray, iy: int, ix: int, exclude: int = 2) -> float:
-    """Peak-to-sidelobe ratio: (peak - mean) / std of the response outside the ``2 * exclude + 1`` cells around it."""
+    """Peak-to-sidelobe ratio: (peak - mean) / std of the response outside the ``2 * exclude + 1``
+    cells around it."""
     h, w = r.shape
     mask = np.ones(r.shape, bool)
     ys = np.arange(iy - exclude, iy + exclude + 1) % h
@@ -549,9 +649,16 @@ def psr(r: np.ndarray, iy: int, ix: int, exclude: int = 2) -> float:
     return float((r[iy, ix] - side.mean()) / sd) if sd > 1e-12 else 0.0
 
 
-def detect(model: AppearanceModel, vis: np.ndarray | None, ir: np.ndarray | None, center: tuple[float, float],
-           cfg: AppearanceConfig, size: tuple[float, float] | None = None, with_scale: bool = True,
-           keep_response: bool = False) -> Detection:
+def detect(
+    model: AppearanceModel,
+    vis: np.ndarray | None,
+    ir: np.ndarray | None,
+    center: tuple[float, float],
+    cfg: AppearanceConfig,
+    size: tuple[float, float] | None = None,
+    with_scale: bool = True,
+    keep_response: bool = False,
+) -> Detection:
     """Find the target around ``center`` (frame px) with the model's filters.
 
     ``size`` is the target size to search with (default the model's); the window keeps the
@@ -578,13 +685,19 @@ def detect(model: AppearanceModel, vis: np.ndarray | None, ir: np.ndarray | None
     cx = center[0] + dx * fx * cfg.cell_px
     cy = center[1] + dy * fy * cfg.cell_px
     q = psr(resp, iy, ix)
-    support = (psr(resp_v, iy, ix), psr(resp_i, iy, ix)) if both else (
-        (q, float("nan")) if model.channels[0] else (float("nan"), q))
+    support = (
+        (psr(resp_v, iy, ix), psr(resp_i, iy, ix))
+        if both
+        else ((q, float("nan")) if model.channels[0] else (float("nan"), q))
+    )
     factor = 1.0
     if with_scale and cfg.scale_filter:
         S = _scale_samples(vis, ir, (cx, cy), sz, cfg, model.scale_template)
-        rs = np.fft.irfft(np.sum(np.conj(model.s_num) * np.fft.rfft(S, axis=1), axis=0)
-                          / (model.s_den + cfg.lambda_reg), n=cfg.scale_count)
+        rs = np.fft.irfft(
+            np.sum(np.conj(model.s_num) * np.fft.rfft(S, axis=1), axis=0)
+            / (model.s_den + cfg.lambda_reg),
+            n=cfg.scale_count,
+        )
         rs = np.fft.fftshift(rs)
         k = int(np.argmax(rs))
         f = _scale_factors(cfg.scale_count, cfg.scale_step)
@@ -593,15 +706,30 @@ def detect(model: AppearanceModel, vis: np.ndarray | None, ir: np.ndarray | None
             a, b, c = rs[k - 1], rs[k], rs[k + 1]
             d = a - 2 * b + c
             off = float(np.clip(0.5 * (a - c) / d, -0.5, 0.5)) if d < 0 else 0.0
-        factor = float(f[k] * cfg.scale_step ** off)
+        factor = float(f[k] * cfg.scale_step**off)
         factor = float(np.clip(factor, 1 / cfg.max_scale_change, cfg.max_scale_change))
-    return Detection((cx, cy), peak, q, (sz[0] * factor, sz[1] * factor), factor, support,
-                     resp if keep_response else None)
+    return Detection(
+        (cx, cy),
+        peak,
+        q,
+        (sz[0] * factor, sz[1] * factor),
+        factor,
+        support,
+        resp if keep_response else None,
+    )
 
 
-def update(model: AppearanceModel, vis: np.ndarray | None, ir: np.ndarray | None, box: BBox, cfg: AppearanceConfig,
-           rate: float | None = None, scale_rate: float | None = None) -> AppearanceModel:
-    """The model with the target in ``box`` blended in (``rate`` defaults to ``cfg.learning_rate``; 0 keeps it)."""
+def update(
+    model: AppearanceModel,
+    vis: np.ndarray | None,
+    ir: np.ndarray | None,
+    box: BBox,
+    cfg: AppearanceConfig,
+    rate: float | None = None,
+    scale_rate: float | None = None,
+) -> AppearanceModel:
+    """The model with the target in ``box`` blended in (``rate`` defaults to ``cfg.learning_rate``;
+    0 keeps it)."""
     r = cfg.learning_rate if rate is None else rate
     rs = cfg.scale_learning_rate if scale_rate is None else scale_rate
     if r <= 0 and rs <= 0:
@@ -615,11 +743,33 @@ def update(model: AppearanceModel, vis: np.ndarray | None, ir: np.ndarray | None
     if rs > 0 and cfg.scale_filter:
         s_num = (1 - rs) * model.s_num + rs * new.s_num
         s_den = (1 - rs) * model.s_den + rs * new.s_den
-    return replace(model, num=num, den=den, s_num=s_num, s_den=s_den, size=(box.w, box.h), frames=model.frames + 1)
+    return replace(
+        model,
+        num=num,
+        den=den,
+        s_num=s_num,
+        s_den=s_den,
+        size=(box.w, box.h),
+        frames=model.frames + 1,
+    )
 
 
 @cache
 def warm_up() -> None:
     """Compile or load the feature kernels once per process."""
     _hog_cells(np.zeros((8, 8), np.float32), 4, 9, np.float32(0.2))
-    _scale_hog(np.zeros((8, 8), np.float32), 0.0, 0.0, 4.0, 4.0, 4.0, 4.0, np.ones(3), 8, 8, 4, 9, np.float32(0.2))
+    _scale_hog(
+        np.zeros((8, 8), np.float32),
+        0.0,
+        0.0,
+        4.0,
+        4.0,
+        4.0,
+        4.0,
+        np.ones(3),
+        8,
+        8,
+        4,
+        9,
+        np.float32(0.2),
+    )

@@ -134,7 +134,9 @@ class Assignment:
     unmatched_tracks: tuple[int, ...]
     unmatched_detections: tuple[int, ...]
     cost: float
-    details: dict[str, object] = field(default_factory=dict)  # associator-specific (CHNN: energies, gap)
+    details: dict[str, object] = field(
+        default_factory=dict
+    )  # associator-specific (CHNN: energies, gap)
 
 
 def mahalanobis2(d: np.ndarray, S: np.ndarray) -> float:
@@ -147,16 +149,19 @@ def state_log_likelihood(z: np.ndarray, z_pred: np.ndarray, S: np.ndarray) -> tu
     covariance ``S`` (eq. 12-13)."""
     d = np.asarray(z, float) - np.asarray(z_pred, float)
     gamma = mahalanobis2(d, S)
-    sign, logdet = np.linalg.slogdet(S)
+    _sign, logdet = np.linalg.slogdet(S)
     return -0.5 * gamma - 0.5 * d.size * math.log(2 * math.pi) - 0.5 * logdet, gamma
 
 
-def state_log_likelihoods(z: np.ndarray, z_pred: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`state_log_likelihood` of every row of ``z`` (M, R) at once: ``(ln Λ_S (M,), γ (M,))``."""
+def state_log_likelihoods(
+    z: np.ndarray, z_pred: np.ndarray, S: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`state_log_likelihood` of every row of ``z`` (M, R) at once: ``(ln Λ_S (M,), γ
+    (M,))``."""
     d = np.asarray(z, float).reshape(-1, len(z_pred)) - np.asarray(z_pred, float)
     Sinv = np.linalg.inv(S)
     gamma = np.einsum("mi,ij,mj->m", d, Sinv, d)
-    sign, logdet = np.linalg.slogdet(S)
+    _sign, logdet = np.linalg.slogdet(S)
     return -0.5 * gamma - 0.5 * d.shape[1] * math.log(2 * math.pi) - 0.5 * logdet, gamma
 
 
@@ -182,14 +187,27 @@ def hungarian(cost: np.ndarray, miss_cost: np.ndarray, new_cost: np.ndarray) -> 
     cost = np.asarray(cost, float).reshape(len(miss_cost), len(new_cost))
     n, m = cost.shape
     if n == 0 or m == 0:
-        return Assignment((), tuple(range(n)), tuple(range(m)), float(np.sum(miss_cost)) + float(np.sum(new_cost)))
+        return Assignment(
+            (),
+            tuple(range(n)),
+            tuple(range(m)),
+            float(np.sum(miss_cost)) + float(np.sum(new_cost)),
+        )
     big = padded_cost(cost, np.asarray(miss_cost, float), np.asarray(new_cost, float))
     r, c = linear_sum_assignment(big)
-    pairs = tuple((int(i), int(j)) for i, j in zip(r, c, strict=True) if i < n and j < m and big[i, j] < IMPOSSIBLE)
+    pairs = tuple(
+        (int(i), int(j))
+        for i, j in zip(r, c, strict=True)
+        if i < n and j < m and big[i, j] < IMPOSSIBLE
+    )
     mt = {i for i, _ in pairs}
     md = {j for _, j in pairs}
-    return Assignment(pairs, tuple(i for i in range(n) if i not in mt), tuple(j for j in range(m) if j not in md),
-                      float(big[r, c].sum()))
+    return Assignment(
+        pairs,
+        tuple(i for i in range(n) if i not in mt),
+        tuple(j for j in range(m) if j not in md),
+        float(big[r, c].sum()),
+    )
 
 
 Associator = Callable[[np.ndarray, np.ndarray, np.ndarray], Assignment]
@@ -197,10 +215,13 @@ ASSOCIATORS: dict[str, Associator] = {"hungarian": hungarian}
 
 
 def get_associator(name: str) -> Associator:
-    """The associator registered as ``name`` (``hungarian``; ``chnn`` once its module is loaded)."""
+    """The associator registered as ``name`` (``hungarian``; ``chnn`` once its module is
+    loaded)."""
     if name == "chnn" and "chnn" not in ASSOCIATORS:
         import pipeline.stages.chnn  # noqa: F401  (registers itself)
     try:
         return ASSOCIATORS[name]
     except KeyError:
-        raise ValueError(f"unknown associator {name!r}; available: {', '.join(ASSOCIATORS)}") from None
+        raise ValueError(
+            f"unknown associator {name!r}; available: {', '.join(ASSOCIATORS)}"
+        ) from None

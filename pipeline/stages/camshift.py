@@ -43,9 +43,16 @@ def to_hsv(image: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
 
 
-def feature(image: np.ndarray, n_bins: int, min_saturation: int = 60, min_value: int = 32,
-            saturation_bins: int = 1, hsv: np.ndarray | None = None) -> Feature:
-    """Hue bins (visible BGR; times ``saturation_bins`` saturation bins) or intensity bins (IR grey).
+def feature(
+    image: np.ndarray,
+    n_bins: int,
+    min_saturation: int = 60,
+    min_value: int = 32,
+    saturation_bins: int = 1,
+    hsv: np.ndarray | None = None,
+) -> Feature:
+    """Hue bins (visible BGR; times ``saturation_bins`` saturation bins) or intensity bins (IR
+    grey).
 
     Visible pixels below ``min_saturation`` or ``min_value`` are invalid (hue is meaningless
     there). Pass ``hsv`` (from :func:`to_hsv`) to reuse one conversion for several features.
@@ -81,7 +88,9 @@ def kernel_masked_histogram(f: Feature, box: BBox) -> np.ndarray:
 
     if box.w <= 0 or box.h <= 0:
         raise ValueError(f"half-axes must be positive; got ({box.w / 2.0}, {box.h / 2.0})")
-    h = ellipse_histogram(f.bins, float(box.cx), float(box.cy), box.w / 2.0, box.h / 2.0, f.n_bins, f.valid)[0]
+    h = ellipse_histogram(
+        f.bins, float(box.cx), float(box.cy), box.w / 2.0, box.h / 2.0, f.n_bins, f.valid
+    )[0]
     s = h.sum()
     return h / s if s > 0 else h
 
@@ -96,8 +105,10 @@ def sampling_distance(f: Feature, box: BBox) -> float:
     from pipeline.stages.histogram import bhattacharyya, bhattacharyya_distance
 
     yy, xx = np.indices(f.valid.shape)
-    even = ((yy + xx) % 2 == 0)
-    halves = [kernel_masked_histogram(Feature(f.bins, f.valid & m, f.n_bins), box) for m in (even, ~even)]
+    even = (yy + xx) % 2 == 0
+    halves = [
+        kernel_masked_histogram(Feature(f.bins, f.valid & m, f.n_bins), box) for m in (even, ~even)
+    ]
     if any(h.sum() <= 0 for h in halves):
         return 1.0
     return bhattacharyya_distance(bhattacharyya(halves[0], halves[1])) / math.sqrt(2.0)
@@ -112,7 +123,7 @@ def background_weights(f: Feature, box: BBox, scale: float) -> np.ndarray:
     H, W = f.bins.shape
     big = box.scaled(scale).clip(W, H)
     ring = np.zeros((H, W), bool)
-    ring[int(big.y):int(math.ceil(big.y2)), int(big.x):int(math.ceil(big.x2))] = True
+    ring[int(big.y) : math.ceil(big.y2), int(big.x) : math.ceil(big.x2)] = True
     ring &= ~box_mask((H, W), box.scaled(1.2))
     o = histogram(f, ring)
     nz = o[o > 0]
@@ -129,7 +140,8 @@ def weighted_model(q: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 
 def back_project(f: Feature, hist: np.ndarray) -> np.ndarray:
-    """uint8 probability image: the histogram scaled to max 255, looked up per pixel (0 where invalid)."""
+    """uint8 probability image: the histogram scaled to max 255, looked up per pixel (0 where
+    invalid)."""
     peak = hist.max()
     lut = np.zeros(256, np.uint8)
     if peak > 0:
@@ -151,8 +163,9 @@ def box_mask(shape: tuple[int, int], box: BBox) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CamShiftResult:
-    """``box``: axis-aligned bound of the CamShift ellipse (None when nothing was found); ``window``
-    the search window OpenCV returns; ``area_px2`` = box area (0 when nothing was found)."""
+    """``box``: axis-aligned bound of the CamShift ellipse (None when nothing was found);
+    ``window`` the search window OpenCV returns; ``area_px2`` = box area (0 when nothing was
+    found)."""
 
     box: BBox | None
     window: BBox
@@ -160,8 +173,11 @@ class CamShiftResult:
     iterations_cap: int
 
 
-def camshift(prob: np.ndarray, window: BBox, max_iterations: int = 10, epsilon_px: float = 1.0) -> CamShiftResult:
-    """Run ``cv2.CamShift`` from ``window`` (px of ``prob``); degenerate results give ``box=None``."""
+def camshift(
+    prob: np.ndarray, window: BBox, max_iterations: int = 10, epsilon_px: float = 1.0
+) -> CamShiftResult:
+    """Run ``cv2.CamShift`` from ``window`` (px of ``prob``); degenerate results give
+    ``box=None``."""
     h, w = prob.shape
     win = window.to_cv(w, h)
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, max_iterations, epsilon_px)

@@ -69,15 +69,22 @@ def energy(V: np.ndarray, cost: np.ndarray, B: float) -> float:
     return float(0.5 * (cost * V).sum() + 0.5 * B * (row * row - (V * V).sum(axis=1)).sum())
 
 
-def chnn(d: np.ndarray, A: float = 1.0, B: float | None = None, F: np.ndarray | None = None, image_weight: float = 100.0,
-         max_sweeps: int = 50, init: str = "nearest") -> ChnnResult:
+def chnn(
+    d: np.ndarray,
+    A: float = 1.0,
+    B: float | None = None,
+    F: np.ndarray | None = None,
+    image_weight: float = 100.0,
+    max_sweeps: int = 50,
+    init: str = "nearest",
+) -> ChnnResult:
     """Run the network on the (N + M) x N cost ``d`` (and dissimilarity ``F``, same shape).
 
     ``B`` defaults to the paper's λ + 1 with λ read off the pseudo diagonal; ``init`` is
     ``nearest`` (each column at its cheapest row) or ``pseudo`` (every target at its pseudo row).
     """
     d = np.asarray(d, float)
-    rows_total, n = d.shape
+    _rows_total, n = d.shape
     if n == 0:
         return ChnnResult(np.zeros(0, int), (0.0,), 0, True)
     lam = float(np.diag(d[:n, :n]).max())
@@ -111,19 +118,30 @@ def chnn(d: np.ndarray, A: float = 1.0, B: float | None = None, F: np.ndarray | 
     return ChnnResult(np.argmax(V, axis=0), tuple(energies), sweeps, converged)
 
 
-def hungarian_reference(d: np.ndarray, F: np.ndarray | None = None, A: float = 1.0,
-                        image_weight: float = 100.0) -> tuple[np.ndarray, float]:
-    """Exact minimum of Σ (A d + W F) over one-to-one assignments: winner row per column and its cost."""
-    cost = A * np.asarray(d, float) + (image_weight * np.asarray(F, float) if F is not None else 0.0)
+def hungarian_reference(
+    d: np.ndarray, F: np.ndarray | None = None, A: float = 1.0, image_weight: float = 100.0
+) -> tuple[np.ndarray, float]:
+    """Exact minimum of Σ (A d + W F) over one-to-one assignments: winner row per column and its
+    cost."""
+    cost = A * np.asarray(d, float) + (
+        image_weight * np.asarray(F, float) if F is not None else 0.0
+    )
     r, c = linear_sum_assignment(cost)
     rows = np.empty(cost.shape[1], int)
     rows[c] = r
     return rows, float(cost[r, c].sum())
 
 
-def assignment_cost(rows: np.ndarray, d: np.ndarray, F: np.ndarray | None = None, A: float = 1.0,
-                    image_weight: float = 100.0) -> float:
-    cost = A * np.asarray(d, float) + (image_weight * np.asarray(F, float) if F is not None else 0.0)
+def assignment_cost(
+    rows: np.ndarray,
+    d: np.ndarray,
+    F: np.ndarray | None = None,
+    A: float = 1.0,
+    image_weight: float = 100.0,
+) -> float:
+    cost = A * np.asarray(d, float) + (
+        image_weight * np.asarray(F, float) if F is not None else 0.0
+    )
     return float(cost[rows, np.arange(len(rows))].sum())
 
 
@@ -135,7 +153,12 @@ def chnn_associator(cost: np.ndarray, miss_cost: np.ndarray, new_cost: np.ndarra
     cost = np.asarray(cost, float)
     n, m = cost.shape
     if n == 0 or m == 0:
-        return Assignment((), tuple(range(n)), tuple(range(m)), float(np.sum(miss_cost)) + float(np.sum(new_cost)))
+        return Assignment(
+            (),
+            tuple(range(n)),
+            tuple(range(m)),
+            float(np.sum(miss_cost)) + float(np.sum(new_cost)),
+        )
     # Σ pairs + Σ missed + Σ unassigned detections = Σ new + Σ pairs (cost - new_j) + Σ missed:
     # a measurement row costs what taking it saves over leaving the detection to a new track
     d = np.full((n + m, n), BIG)
@@ -143,19 +166,24 @@ def chnn_associator(cost: np.ndarray, miss_cost: np.ndarray, new_cost: np.ndarra
     real = cost.T - np.asarray(new_cost, float)[:, None]
     real[~np.isfinite(cost.T) | (cost.T >= IMPOSSIBLE)] = BIG
     d[n:, :] = real
-    # row inhibition above half of (dearest pseudo row - cheapest measurement row): one-to-one fixed points
+    # row inhibition above half of (dearest pseudo row - cheapest measurement row): one-to-one
+    # fixed points
     finite = real[real < BIG]
     B = float(np.max(miss_cost)) - (float(finite.min()) if finite.size else 0.0) + 1.0
     res = chnn(d, A=1.0, B=B, image_weight=0.0)
-    ref_rows, ref_cost = hungarian_reference(d, image_weight=0.0)
+    _ref_rows, ref_cost = hungarian_reference(d, image_weight=0.0)
     rows = res.rows
     mine = assignment_cost(rows, d, image_weight=0.0)
     pairs = tuple((i, int(r) - n) for i, r in enumerate(rows) if r >= n and d[r, i] < BIG)
     used = {j for _, j in pairs}
     total = mine + float(np.sum(new_cost))
-    return Assignment(pairs, tuple(i for i in range(n) if i not in {p[0] for p in pairs}),
-                      tuple(j for j in range(m) if j not in used), total,
-                      {"energies": res.energies, "sweeps": res.sweeps, "gap_to_optimum": mine - ref_cost})
+    return Assignment(
+        pairs,
+        tuple(i for i in range(n) if i not in {p[0] for p in pairs}),
+        tuple(j for j in range(m) if j not in used),
+        total,
+        {"energies": res.energies, "sweeps": res.sweeps, "gap_to_optimum": mine - ref_cost},
+    )
 
 
 ASSOCIATORS["chnn"] = chnn_associator

@@ -104,7 +104,8 @@ class LevelSetMemory:
 
 
 class ContourReason(enum.StrEnum):
-    """Why a contour is or is not a measurement (``ContourResult.reason``; its value is what targets.csv says)."""
+    """Why a contour is or is not a measurement (``ContourResult.reason``; its value is what
+    targets.csv says)."""
 
     OK = "ok"
     NO_COMPONENT = "no-component"  # nothing overlaps the expected box
@@ -112,7 +113,9 @@ class ContourReason(enum.StrEnum):
     COLLAPSE = "collapse"  # under ``min_area_fraction`` of the expected box
     TOO_LARGE = "too-large"  # over ``max_area_ratio`` of it (merged with a warm neighbour)
     SHAPE_CHANGE = "shape-change"  # width or height off by more than ``max_dimension_ratio``
-    LOW_CONTRAST = "low-contrast"  # its IR differs from the ring around by under ``min_contrast`` (crossover)
+    LOW_CONTRAST = (
+        "low-contrast"  # its IR differs from the ring around by under ``min_contrast`` (crossover)
+    )
 
 
 @dataclass(frozen=True)
@@ -128,10 +131,15 @@ class ContourResult:
     memory: LevelSetMemory
     components: tuple[BBox, ...] = field(default_factory=tuple)
     warm: bool = False
-    at_border: tuple[bool, bool] = (False, False)  # the selection reaches the frame's border along x / y
+    at_border: tuple[bool, bool] = (
+        False,
+        False,
+    )  # the selection reaches the frame's border along x / y
 
 
-def region(expected: BBox, cfg: ContourConfig, width: int, height: int) -> tuple[int, int, int, int]:
+def region(
+    expected: BBox, cfg: ContourConfig, width: int, height: int
+) -> tuple[int, int, int, int]:
     """Integer ``(x0, y0, x1, y1)`` of the level-set region around ``expected``, clipped."""
     mx = max(cfg.roi_margin_px, cfg.roi_margin_fraction * expected.w)
     my = max(cfg.roi_margin_px, cfg.roi_margin_fraction * expected.h)
@@ -142,15 +150,27 @@ def region(expected: BBox, cfg: ContourConfig, width: int, height: int) -> tuple
     return x0, y0, max(x1, x0 + 1), max(y1, y0 + 1)
 
 
-def warm_phi(memory: LevelSetMemory, shift: tuple[float, float], origin: tuple[int, int], shape: tuple[int, int],
-             c0: float, dilate_px: float = 0.0) -> np.ndarray:
-    """The previous phi moved by ``shift`` (frame px) into a region at ``origin``, its zero level moved
-    ``dilate_px`` outward (through a signed distance of its inside), clipped to +-c0."""
+def warm_phi(
+    memory: LevelSetMemory,
+    shift: tuple[float, float],
+    origin: tuple[int, int],
+    shape: tuple[int, int],
+    c0: float,
+    dilate_px: float = 0.0,
+) -> np.ndarray:
+    """The previous phi moved by ``shift`` (frame px) into a region at ``origin``, its zero level
+    moved ``dilate_px`` outward (through a signed distance of its inside), clipped to +-c0."""
     tx = origin[0] - memory.origin[0] - shift[0]
     ty = origin[1] - memory.origin[1] - shift[1]
     M = np.array([[1.0, 0.0, tx], [0.0, 1.0, ty]], np.float32)
-    phi = cv2.warpAffine(memory.phi, M, (shape[1], shape[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                         borderMode=cv2.BORDER_CONSTANT, borderValue=float(c0))
+    phi = cv2.warpAffine(
+        memory.phi,
+        M,
+        (shape[1], shape[0]),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=float(c0),
+    )
     if dilate_px > 0:  # distance outside the previous inside, offset outward; flat -c0 inside
         inside = phi < 0
         d_out = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 3)
@@ -158,10 +178,13 @@ def warm_phi(memory: LevelSetMemory, shift: tuple[float, float], origin: tuple[i
     return np.clip(phi, -c0, c0).astype(np.float32)
 
 
-@numba.njit(cache=True, boundscheck=False, nogil=True)  # no fastmath: the same float32 arithmetic as numpy
+@numba.njit(
+    cache=True, boundscheck=False, nogil=True
+)  # no fastmath: the same float32 arithmetic as numpy
 def _reach(phi, mask, fixed, lo, hi, step, along_rows):  # pragma: no cover (compiled)
-    """Farthest fraction of a pixel beyond the inside pixel centres of line ``fixed`` (a column when
-    ``along_rows``, else a row) where phi crosses 0 towards ``fixed + step``; 0.5 past the array edge."""
+    """Farthest fraction of a pixel beyond the inside pixel centres of line ``fixed`` (a column
+    when ``along_rows``, else a row) where phi crosses 0 towards ``fixed + step``; 0.5 past the
+    array edge."""
     n = phi.shape[1] if along_rows else phi.shape[0]
     if fixed + step < 0 or fixed + step >= n:
         return 0.5
@@ -186,10 +209,10 @@ def _reach(phi, mask, fixed, lo, hi, step, along_rows):  # pragma: no cover (com
 
 
 def _ring_contrast(roi: np.ndarray, sel_u8: np.ndarray) -> float:
-    """Mean IR of the selection minus the mean of the ring around it (its 7x7 dilation minus itself),
-    0 without a ring, in one compiled pass. The sums are exact integers, each mean a float32 quotient:
-    numpy's float32 means of the same pixels wherever their sums stay below 2**24 (tested), i.e. any
-    region under 65 000 px; above that these are the more exact ones."""
+    """Mean IR of the selection minus the mean of the ring around it (its 7x7 dilation minus
+    itself), 0 without a ring, in one compiled pass. The sums are exact integers, each mean a
+    float32 quotient: numpy's float32 means of the same pixels wherever their sums stay below 2**24
+    (tested), i.e. any region under 65 000 px; above that these are the more exact ones."""
     return _ring_contrast_kernel(np.ascontiguousarray(roi), sel_u8)
 
 
@@ -233,8 +256,8 @@ def _ring_contrast_kernel(roi, sel):  # pragma: no cover (compiled)
 
 
 def _subpixel_box(phi: np.ndarray, mask: np.ndarray) -> tuple[float, float, float, float]:
-    """Box (x0, y0, x1, y1) of ``mask`` with each edge at the farthest interpolated zero crossing of phi
-    along the rows (left, right) or columns (top, bottom) that reach the mask's extreme."""
+    """Box (x0, y0, x1, y1) of ``mask`` with each edge at the farthest interpolated zero crossing
+    of phi along the rows (left, right) or columns (top, bottom) that reach the mask's extreme."""
     m = mask.astype(np.uint8)
     c0, r0, bw, bh = cv2.boundingRect(m)
     c1, r1 = c0 + bw - 1, r0 + bh - 1
@@ -284,13 +307,16 @@ def extract_contour(
     empty_mem = LevelSetMemory(np.zeros((1, 1), np.float32), (x0, y0))
     if roi.shape[0] < 8 or roi.shape[1] < 8:
         return ContourResult(False, ContourReason.NO_COMPONENT, None, (), 0, 0.0, empty_mem)
-    k = int(round(cfg.closing_fraction * (part_width or expected.w))) | 1
+    k = round(cfg.closing_fraction * (part_width or expected.w)) | 1
     if cfg.closing_fraction > 0 and k >= 3:
-        roi = cv2.morphologyEx(roi, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+        roi = cv2.morphologyEx(
+            roi, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+        )
     em = edge_map(roi, ls_cfg)
     warm = cfg.warm_start and memory is not None and memory.phi.size > 1
     if warm:
-        phi0 = warm_phi(memory, shift, (x0, y0), roi.shape, ls_cfg.step_height, cfg.warm_dilate_px)  # type: ignore[arg-type]
+        # type: ignore[arg-type]
+        phi0 = warm_phi(memory, shift, (x0, y0), roi.shape, ls_cfg.step_height, cfg.warm_dilate_px)
         if not (phi0 < 0).any():
             warm = False
     if not warm:
@@ -301,18 +327,49 @@ def extract_contour(
     mem = LevelSetMemory(phi, (x0, y0))
     mask = (phi < 0).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    comps = [BBox(float(stats[i, 0] + x0), float(stats[i, 1] + y0), float(stats[i, 2]), float(stats[i, 3]))
-             for i in range(1, n) if stats[i, 4] >= 4]
+    comps = [
+        BBox(
+            float(stats[i, 0] + x0),
+            float(stats[i, 1] + y0),
+            float(stats[i, 2]),
+            float(stats[i, 3]),
+        )
+        for i in range(1, n)
+        if stats[i, 4] >= 4
+    ]
     if n <= 1:
-        return ContourResult(False, ContourReason.NO_COMPONENT, None, (), res.iterations, 0.0, mem, tuple(comps), warm)
+        return ContourResult(
+            False,
+            ContourReason.NO_COMPONENT,
+            None,
+            (),
+            res.iterations,
+            0.0,
+            mem,
+            tuple(comps),
+            warm,
+        )
     ex = expected.shifted(-x0, -y0)
     ex_mask = np.zeros(mask.shape, bool)
-    ex_mask[max(int(ex.y), 0):max(int(np.ceil(ex.y2)), 0), max(int(ex.x), 0):max(int(np.ceil(ex.x2)), 0)] = True
+    ex_mask[
+        max(int(ex.y), 0) : max(int(np.ceil(ex.y2)), 0),
+        max(int(ex.x), 0) : max(int(np.ceil(ex.x2)), 0),
+    ] = True
     inside_counts = np.bincount(labels[ex_mask], minlength=n)
     inside_counts[0] = 0
     best = int(np.argmax(inside_counts))
     if inside_counts[best] == 0:
-        return ContourResult(False, ContourReason.NO_COMPONENT, None, (), res.iterations, 0.0, mem, tuple(comps), warm)
+        return ContourResult(
+            False,
+            ContourReason.NO_COMPONENT,
+            None,
+            (),
+            res.iterations,
+            0.0,
+            mem,
+            tuple(comps),
+            warm,
+        )
     sel = labels == best
     grown = ex.scaled(1.15)
     for i in range(1, n):
@@ -325,13 +382,17 @@ def extract_contour(
     bx, by, bw, bh = cv2.boundingRect(sel_u8)
     h, w = mask.shape
     touches = by <= 1 or bx <= 1 or by + bh - 1 >= h - 2 or bx + bw - 1 >= w - 2
-    at_border = ((bx <= 1 and x0 == 0) or (bx + bw - 1 >= w - 2 and x1 == W),
-                 (by <= 1 and y0 == 0) or (by + bh - 1 >= h - 2 and y1 == H))
+    at_border = (
+        (bx <= 1 and x0 == 0) or (bx + bw - 1 >= w - 2 and x1 == W),
+        (by <= 1 and y0 == 0) or (by + bh - 1 >= h - 2 and y1 == H),
+    )
     left, top, right, bottom = _subpixel_box(phi, sel)
     box = BBox(left + x0, top + y0, right - left, bottom - top)
     contrast = _ring_contrast(roi, sel_u8)
     cs, _ = cv2.findContours(sel_u8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    contour = tuple(c.reshape(-1, 2).astype(np.float64) + (x0 + 0.5, y0 + 0.5) for c in cs if len(c) >= 3)
+    contour = tuple(
+        c.reshape(-1, 2).astype(np.float64) + np.array([x0 + 0.5, y0 + 0.5]) for c in cs if len(c) >= 3
+    )
     reason = ContourReason.OK
     if touches:
         reason = ContourReason.LEAK
@@ -339,19 +400,32 @@ def extract_contour(
         reason = ContourReason.COLLAPSE
     elif box.area > cfg.max_area_ratio * expected.area:
         reason = ContourReason.TOO_LARGE
-    elif not (1 / cfg.max_dimension_ratio <= box.w / expected.w <= cfg.max_dimension_ratio
-              and 1 / cfg.max_dimension_ratio <= box.h / expected.h <= cfg.max_dimension_ratio):
+    elif not (
+        1 / cfg.max_dimension_ratio <= box.w / expected.w <= cfg.max_dimension_ratio
+        and 1 / cfg.max_dimension_ratio <= box.h / expected.h <= cfg.max_dimension_ratio
+    ):
         reason = ContourReason.SHAPE_CHANGE
     elif abs(contrast) < cfg.min_contrast:
         reason = ContourReason.LOW_CONTRAST
-    return ContourResult(reason == ContourReason.OK, reason, box, contour, res.iterations, contrast, mem, tuple(comps), warm,
-                         at_border)
+    return ContourResult(
+        reason == ContourReason.OK,
+        reason,
+        box,
+        contour,
+        res.iterations,
+        contrast,
+        mem,
+        tuple(comps),
+        warm,
+        at_border,
+    )
 
 
 @cache
 def warm_up() -> None:
-    """Compile or load the contour stage's numba kernels (the level set's, :func:`_reach` and the ring
-    contrast's) once per process, so that a tracker's first timed frame does not pay for it."""
+    """Compile or load the contour stage's numba kernels (the level set's, :func:`_reach` and the
+    ring contrast's) once per process, so that a tracker's first timed frame does not pay for it.
+    """
     levelset.warm_up()
     phi = np.full((6, 6), 2.0, np.float32)
     phi[2:4, 2:4] = -2.0

@@ -198,7 +198,10 @@ class DetectionConfig(Section):
     def check(self) -> None:
         lo, hi = self.perimeter_px
         if not 0 <= lo < hi:
-            raise ValueError(f"detection.perimeter_px must be (min, max) with 0 <= min < max; got {self.perimeter_px!r}")
+            raise ValueError(
+                "detection.perimeter_px must be (min, max) with 0 <= min < max; got "
+                f"{self.perimeter_px!r}"
+            )
 
 
 class RegionReason(enum.StrEnum):
@@ -209,7 +212,8 @@ class RegionReason(enum.StrEnum):
     TOO_LARGE = "too-large"  # over it
     ELONGATED = "elongated"  # minimum-area-rectangle aspect over ``max_aspect``
     COMPLEX = "complex"  # C2 over ``max_complexity``
-    VISIBLE = "visible"  # kept: the visible channel's foreground with weak IR support, where the IR found nothing
+    # kept: the visible channel's foreground with weak IR support, where the IR found nothing
+    VISIBLE = "visible"
 
 
 @dataclass(frozen=True)
@@ -230,18 +234,22 @@ class Region:
 
 @dataclass(frozen=True)
 class Detections:
-    """What :func:`detect` found in one frame: the accepted regions and all of them, and the maps."""
+    """What :func:`detect` found in one frame: the accepted regions and all of them, and the
+    maps."""
 
     regions: tuple[Region, ...]
     rejected: tuple[Region, ...]
     std_map: np.ndarray = field(repr=False)
     mask: np.ndarray = field(repr=False)
-    background: Background | None = field(default=None, repr=False)  # for the next frame (``foreground``)
+    background: Background | None = field(
+        default=None, repr=False
+    )  # for the next frame (``foreground``)
 
 
 @dataclass(frozen=True)
 class Background:
-    """A background estimate of a still camera's frames (float32, grey levels) and how many frames it has seen.
+    """A background estimate of a still camera's frames (float32, grey levels) and how many frames
+    it has seen.
 
     A ``static`` one (the sequence's, :func:`quantile_background`) is registered to every frame
     and never updated; the others follow the frames (:func:`update_background`).
@@ -249,7 +257,9 @@ class Background:
 
     estimate: np.ndarray = field(repr=False)
     frames: int = 0  # frames it has learned from
-    visible: np.ndarray | None = field(default=None, repr=False)  # (H, W, 3) float32 CIELAB, when fused
+    visible: np.ndarray | None = field(
+        default=None, repr=False
+    )  # (H, W, 3) float32 CIELAB, when fused
     static: bool = False
 
 
@@ -269,7 +279,8 @@ def robust_level(a: np.ndarray) -> tuple[float, float]:
 
 
 def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float, float]:
-    """The translation ``(dx, dy)`` (px) that carries ``ref`` onto ``img``, ``|dx|, |dy| <= max_px``.
+    """The translation ``(dx, dy)`` (px) that carries ``ref`` onto ``img``, ``|dx|, |dy| <=
+    max_px``.
 
     Phase correlation of the two (Hann-windowed, at half resolution when the frame's shorter
     side is at least 200 px) with its peak searched only within ``max_px`` of zero, so that a
@@ -290,31 +301,41 @@ def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float,
     mag = cv2.magnitude(cross[..., 0], cross[..., 1])
     cross /= np.maximum(mag, 1e-9)[..., None]
     r = cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
-    k = int(math.ceil(max_px / f)) + 1  # one lag beyond the limit, for the parabola at the limit
+    k = math.ceil(max_px / f) + 1  # one lag beyond the limit, for the parabola at the limit
     k = min(k, h // 2 - 1, w // 2 - 1)
-    sub = np.roll(np.roll(r, k, axis=0), k, axis=1)[: 2 * k + 1, : 2 * k + 1]  # lags -k..k on both axes
+    sub = np.roll(np.roll(r, k, axis=0), k, axis=1)[
+        : 2 * k + 1, : 2 * k + 1
+    ]  # lags -k..k on both axes
     iy, ix = np.unravel_index(int(np.argmax(sub)), sub.shape)
 
     def vertex(m: float, c: float, p: float) -> float:
         d = m - 2 * c + p
         return 0.0 if d >= 0 else 0.5 * (m - p) / d
 
-    dy = float(iy - k) + (vertex(sub[iy - 1, ix], sub[iy, ix], sub[iy + 1, ix]) if 0 < iy < 2 * k else 0.0)
-    dx = float(ix - k) + (vertex(sub[iy, ix - 1], sub[iy, ix], sub[iy, ix + 1]) if 0 < ix < 2 * k else 0.0)
+    dy = float(iy - k) + (
+        vertex(sub[iy - 1, ix], sub[iy, ix], sub[iy + 1, ix]) if 0 < iy < 2 * k else 0.0
+    )
+    dx = float(ix - k) + (
+        vertex(sub[iy, ix - 1], sub[iy, ix], sub[iy, ix + 1]) if 0 < ix < 2 * k else 0.0
+    )
     lim = float(max_px)
     return float(np.clip(dx * f, -lim, lim)), float(np.clip(dy * f, -lim, lim))
 
 
 def shift_image(a: np.ndarray, dx: float, dy: float) -> np.ndarray:
-    """``a`` translated by ``(dx, dy)`` px (bilinear, edges replicated); ``a`` itself when both are 0."""
+    """``a`` translated by ``(dx, dy)`` px (bilinear, edges replicated); ``a`` itself when both are
+    0."""
     if dx == 0 and dy == 0:
         return a
     m = np.float32([[1, 0, dx], [0, 1, dy]])
-    return cv2.warpAffine(a, m, (a.shape[1], a.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return cv2.warpAffine(
+        a, m, (a.shape[1], a.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
 
 
-def quantile_background(greys: list[np.ndarray], cfg: DetectionConfig,
-                      labs: list[np.ndarray] | None = None) -> Background:
+def quantile_background(
+    greys: list[np.ndarray], cfg: DetectionConfig, labs: list[np.ndarray] | None = None
+) -> Background:
     """A still camera's background: the per-pixel ``cfg.background_quantile`` of ``greys`` (frames
     spread over the sequence), each first registered to the first by :func:`frame_shift`
     (``cfg.max_shift_px``); and the median of ``labs`` (the same frames' visible CIELAB, float32),
@@ -326,35 +347,46 @@ def quantile_background(greys: list[np.ndarray], cfg: DetectionConfig,
     if not greys:
         raise ValueError("quantile_background needs at least one frame")
     ref = greys[0].astype(np.float32)
-    shifts = [(0.0, 0.0)] + [frame_shift(ref, g, cfg.max_shift_px) if cfg.max_shift_px > 0 else (0.0, 0.0)
-                             for g in greys[1:]]
-    stack = np.stack([shift_image(g.astype(np.float32), -dx, -dy) for g, (dx, dy) in zip(greys, shifts, strict=True)])
-    k = int(round(cfg.background_quantile * (len(greys) - 1)))
+    shifts = [(0.0, 0.0)] + [
+        frame_shift(ref, g, cfg.max_shift_px) if cfg.max_shift_px > 0 else (0.0, 0.0)
+        for g in greys[1:]
+    ]
+    stack = np.stack(
+        [
+            shift_image(g.astype(np.float32), -dx, -dy)
+            for g, (dx, dy) in zip(greys, shifts, strict=True)
+        ]
+    )
+    k = round(cfg.background_quantile * (len(greys) - 1))
     est = np.partition(stack, k, axis=0)[k]
     vis = None
     if labs:
-        vis = np.median(np.stack([shift_image(v, -dx, -dy) for v, (dx, dy) in zip(labs, shifts, strict=True)]),
-                        axis=0).astype(np.float32)
+        vis = np.median(
+            np.stack([shift_image(v, -dx, -dy) for v, (dx, dy) in zip(labs, shifts, strict=True)]),
+            axis=0,
+        ).astype(np.float32)
     return Background(est.astype(np.float32), len(greys), vis, static=True)
 
 
 def bootstrap_background(grey: np.ndarray, cfg: DetectionConfig) -> Background:
-    """The first frame's background: its median over a window of ``background_fraction`` of the shorter side
-    (computed at a quarter of the resolution, then interpolated back)."""
+    """The first frame's background: its median over a window of ``background_fraction`` of the
+    shorter side (computed at a quarter of the resolution, then interpolated back)."""
     from scipy.ndimage import median_filter
 
     H, W = grey.shape
     f = 4 if min(H, W) >= 64 else 1
-    small = cv2.resize(grey.astype(np.float32), (max(W // f, 1), max(H // f, 1)), interpolation=cv2.INTER_AREA)
-    k = max(3, int(round(cfg.background_fraction * min(H, W) / f)) | 1)
+    small = cv2.resize(
+        grey.astype(np.float32), (max(W // f, 1), max(H // f, 1)), interpolation=cv2.INTER_AREA
+    )
+    k = max(3, round(cfg.background_fraction * min(H, W) / f) | 1)
     med = median_filter(small, size=k, mode="nearest")
     return Background(cv2.resize(med, (W, H), interpolation=cv2.INTER_LINEAR), 0)
 
 
 def foreground(grey: np.ndarray, bg: Background, cfg: DetectionConfig) -> np.ndarray:
-    """Pixels warmer than the background (uint8 0/1): by ``foreground_k`` robust deviations of the frame's
-    difference from it and by ``foreground_min_contrast``, against the background's largest value within
-    ``jitter_px`` (a shaking edge is not foreground)."""
+    """Pixels warmer than the background (uint8 0/1): by ``foreground_k`` robust deviations of the
+    frame's difference from it and by ``foreground_min_contrast``, against the background's largest
+    value within ``jitter_px`` (a shaking edge is not foreground)."""
     g = grey.astype(np.float32)
     diff = g - bg.estimate
     med, sigma = robust_level(diff)
@@ -373,12 +405,19 @@ def _toward(est: np.ndarray, x: np.ndarray, fg: np.ndarray, step: float) -> np.n
     return est + np.clip(x - est, -s, s)
 
 
-def update_background(bg: Background, grey: np.ndarray, fg: np.ndarray, cfg: DetectionConfig,
-                      lab: np.ndarray | None = None) -> Background:
+def update_background(
+    bg: Background,
+    grey: np.ndarray,
+    fg: np.ndarray,
+    cfg: DetectionConfig,
+    lab: np.ndarray | None = None,
+) -> Background:
     """The background moved towards ``grey`` (and the visible one towards ``lab``) by at most
     ``background_step`` (a quarter of it under ``fg``, the regions kept as targets): an approximate
     running median."""
-    step = cfg.background_step * max(1.0, 8.0 / math.sqrt(max(bg.frames, 1)))  # fast at first: the bootstrap is rough
+    step = cfg.background_step * max(
+        1.0, 8.0 / math.sqrt(max(bg.frames, 1))
+    )  # fast at first: the bootstrap is rough
     vis = None
     if lab is not None:
         vis = lab.copy() if bg.visible is None else _toward(bg.visible, lab, fg, step)
@@ -386,10 +425,11 @@ def update_background(bg: Background, grey: np.ndarray, fg: np.ndarray, cfg: Det
 
 
 def visible_foreground(lab: np.ndarray, bg: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
-    """Pixels of the visible frame (CIELAB, float32) that differ from its background (uint8 0/1): in colour
-    (a*, b*) or brighter, by ``foreground_k`` robust deviations and ``foreground_min_contrast``, after the
-    frame's overall brightness change (an illumination ramp, flicker) is taken out; a pixel only darker
-    than the background in the same colour is a shadow, not foreground."""
+    """Pixels of the visible frame (CIELAB, float32) that differ from its background (uint8 0/1):
+    in colour (a*, b*) or brighter, by ``foreground_k`` robust deviations and
+    ``foreground_min_contrast``, after the frame's overall brightness change (an illumination ramp,
+    flicker) is taken out; a pixel only darker than the background in the same colour is a shadow,
+    not foreground."""
     L, Lb = lab[..., 0], bg[..., 0]
     step = max(1, int(np.sqrt(L.size / 4096)))
     gain = float(np.median(L[::step, ::step] / np.maximum(Lb[::step, ::step], 1.0)))
@@ -403,8 +443,13 @@ def visible_foreground(lab: np.ndarray, bg: np.ndarray, cfg: DetectionConfig) ->
     return ((dc > thr(dc)) | (dL > thr(np.abs(dL)))).astype(np.uint8)
 
 
-def visible_supported(vfg: np.ndarray, grey: np.ndarray, background: np.ndarray, found: list[Region],
-                      cfg: DetectionConfig) -> tuple[list[Region], list[Region]]:
+def visible_supported(
+    vfg: np.ndarray,
+    grey: np.ndarray,
+    background: np.ndarray,
+    found: list[Region],
+    cfg: DetectionConfig,
+) -> tuple[list[Region], list[Region]]:
     """(accepted, rejected) regions of the visible foreground ``vfg`` (uint8 0/1) where the IR
     frame ``grey`` differs from its ``background`` (absolute difference smoothed by a 5 px
     Gaussian) by more than its median plus ``cfg.visible_support_k`` robust deviations, cleaned
@@ -412,18 +457,25 @@ def visible_supported(vfg: np.ndarray, grey: np.ndarray, background: np.ndarray,
     of a region in ``found`` (the IR's, kept), or whose centroid one holds, are left out.
     The accepted ones carry the reason ``visible``."""
 
-    diff = cv2.GaussianBlur(cv2.absdiff(grey.astype(np.float32), background.astype(np.float32)), (5, 5), 0)
+    diff = cv2.GaussianBlur(
+        cv2.absdiff(grey.astype(np.float32), background.astype(np.float32)), (5, 5), 0
+    )
     med, sigma = robust_level(diff)
     thr = med + cfg.visible_support_k * sigma
     _, contours = _clean_contours(vfg & (diff > thr).astype(np.uint8), cfg)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
 
     def apart(r: Region) -> bool:
-        return not any((f.box.x <= r.centroid[0] <= f.box.x2 and f.box.y <= r.centroid[1] <= f.box.y2)
-                       or (r.box.x <= f.centroid[0] <= r.box.x2 and r.box.y <= f.centroid[1] <= r.box.y2)
-                       for f in found)
+        return not any(
+            (f.box.x <= r.centroid[0] <= f.box.x2 and f.box.y <= r.centroid[1] <= f.box.y2)
+            or (r.box.x <= f.centroid[0] <= r.box.x2 and r.box.y <= f.centroid[1] <= r.box.y2)
+            for f in found
+        )
 
-    return ([replace(r, reason=RegionReason.VISIBLE) for r in ok if apart(r)], [r for r in bad if apart(r)])
+    return (
+        [replace(r, reason=RegionReason.VISIBLE) for r in ok if apart(r)],
+        [r for r in bad if apart(r)],
+    )
 
 
 @functools.lru_cache(maxsize=8)
@@ -455,7 +507,8 @@ def stdm(frame: np.ndarray, window_px: int) -> np.ndarray:
 
 
 def segment(std_map: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
-    """Foreground where the STDM exceeds the threshold (``cfg.threshold``) and ``min_std`` (uint8 0/1)."""
+    """Foreground where the STDM exceeds the threshold (``cfg.threshold``) and ``min_std`` (uint8
+    0/1)."""
     if cfg.threshold == "global":
         med, sigma = robust_level(std_map)
         return ((std_map > med + cfg.k_sigma * sigma) & (std_map > cfg.min_std)).astype(np.uint8)
@@ -467,7 +520,8 @@ def segment(std_map: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
 
 
 def clean(mask: np.ndarray, cfg: DetectionConfig) -> np.ndarray:
-    """Opening, closing, hole filling (outer contours drawn filled) and small components dropped."""
+    """Opening, closing, hole filling (outer contours drawn filled) and small components
+    dropped."""
     return _clean_contours(mask, cfg)[0]
 
 
@@ -479,16 +533,24 @@ def _clean_contours(mask: np.ndarray, cfg: DetectionConfig) -> tuple[np.ndarray,
     m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, cl)
     contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     out = np.zeros_like(m)
-    big = [c for c in contours if cv2.contourArea(c) + 0.5 * cv2.arcLength(c, True) + 1 >= cfg.min_area_px]
+    big = [
+        c
+        for c in contours
+        if cv2.contourArea(c) + 0.5 * cv2.arcLength(c, True) + 1 >= cfg.min_area_px
+    ]
     cv2.drawContours(out, big, -1, 1, thickness=cv2.FILLED)
     return out, big
 
 
-SPLIT_MIN_COMPLEXITY = 1.9  # C2 of the regions split on the synthetic scenes: 2.15-3.63; of single people: median 1.65
+# C2 of the regions split on the synthetic scenes: 2.15-3.63; of single people: median 1.65
+SPLIT_MIN_COMPLEXITY = 1.9
 
 
-def split_touching(contours: list[np.ndarray], core_fraction: float, min_core_px: int) -> list[np.ndarray]:
-    """Outer contours with every region of two or more distance-transform cores split in as many parts.
+def split_touching(
+    contours: list[np.ndarray], core_fraction: float, min_core_px: int
+) -> list[np.ndarray]:
+    """Outer contours with every region of two or more distance-transform cores split in as many
+    parts.
 
     A core is a connected set of pixels farther than ``core_fraction`` x the region's largest
     distance from its boundary, with at least ``min_core_px`` pixels; each pixel of the region
@@ -510,8 +572,9 @@ def split_touching(contours: list[np.ndarray], core_fraction: float, min_core_px
         local = np.zeros((h + 2, w + 2), np.uint8)
         cv2.drawContours(local, [c], -1, 1, thickness=cv2.FILLED, offset=(1 - x, 1 - y))
         dist = cv2.distanceTransform(local, cv2.DIST_L2, 5)
-        n, lab, stats, _ = cv2.connectedComponentsWithStats((dist > core_fraction * dist.max()).astype(np.uint8),
-                                                            connectivity=8)
+        n, lab, stats, _ = cv2.connectedComponentsWithStats(
+            (dist > core_fraction * dist.max()).astype(np.uint8), connectivity=8
+        )
         cores = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_core_px]
         if len(cores) < 2:
             out.append(c)
@@ -520,16 +583,21 @@ def split_touching(contours: list[np.ndarray], core_fraction: float, min_core_px
         for k, i in enumerate(cores, start=1):
             markers[lab == i] = k
         # nearest core of every pixel: the label of the nearest zero pixel of "not a core"
-        _, nearest = cv2.distanceTransformWithLabels((markers == 0).astype(np.uint8), cv2.DIST_L2, 5,
-                                                     labelType=cv2.DIST_LABEL_PIXEL)
+        _, nearest = cv2.distanceTransformWithLabels(
+            (markers == 0).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
+        )
         ys, xs = np.nonzero(markers)
         owner = np.zeros(int(nearest.max()) + 1, np.int32)
         owner[nearest[ys, xs]] = markers[ys, xs]
         parts = owner[nearest] * local
         pieces = []
         for k in range(1, len(cores) + 1):
-            cs, _ = cv2.findContours((parts == k).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE,
-                                     offset=(x - 1, y - 1))
+            cs, _ = cv2.findContours(
+                (parts == k).astype(np.uint8),
+                cv2.RETR_EXTERNAL,
+                cv2.CHAIN_APPROX_SIMPLE,
+                offset=(x - 1, y - 1),
+            )
             if cs:
                 pieces.append(max(cs, key=cv2.contourArea))
         out.extend(pieces if len(pieces) >= 2 else [c])
@@ -546,14 +614,17 @@ def regions(mask: np.ndarray, min_area_px: int = 1) -> list[Region]:
     return regions_from_contours(contours, min_area_px)
 
 
-def regions_from_contours(contours: list[np.ndarray] | tuple[np.ndarray, ...], min_area_px: int = 1) -> list[Region]:
-    """:func:`regions` from outer contours already found (``CHAIN_APPROX_SIMPLE`` ones give the same
-    features: dropping collinear boundary points changes neither the length, the moments nor the hull)."""
+def regions_from_contours(
+    contours: list[np.ndarray] | tuple[np.ndarray, ...], min_area_px: int = 1
+) -> list[Region]:
+    """:func:`regions` from outer contours already found (``CHAIN_APPROX_SIMPLE`` ones give the
+    same features: dropping collinear boundary points changes neither the length, the moments nor
+    the hull)."""
     out = []
     for c in contours:
         perim = float(cv2.arcLength(c, True))
         mom = cv2.moments(c)
-        area = int(round(mom["m00"] + perim / 2 + 1))
+        area = round(mom["m00"] + perim / 2 + 1)
         if area < min_area_px:
             continue
         x, y, w, h = cv2.boundingRect(c)
@@ -563,9 +634,18 @@ def regions_from_contours(contours: list[np.ndarray] | tuple[np.ndarray, ...], m
             cx, cy = float(c[:, 0, 0].mean()) + 0.5, float(c[:, 0, 1].mean()) + 0.5
         (_, _), (rw, rh), _ = cv2.minAreaRect(c)
         aspect = max(rw, rh) / max(min(rw, rh), 1.0)
-        out.append(Region(BBox(float(x), float(y), float(w), float(h)), (float(cx), float(cy)), perim, area,
-                          float(aspect), perim / area, perim * perim / (4 * math.pi * area),
-                          c.reshape(-1, 2).astype(np.float32) + 0.5))
+        out.append(
+            Region(
+                BBox(float(x), float(y), float(w), float(h)),
+                (float(cx), float(cy)),
+                perim,
+                area,
+                float(aspect),
+                perim / area,
+                perim * perim / (4 * math.pi * area),
+                c.reshape(-1, 2).astype(np.float32) + 0.5,
+            )
+        )
     return out
 
 
@@ -590,14 +670,19 @@ def discriminate(found: list[Region], cfg: DetectionConfig) -> tuple[list[Region
     return ok, bad
 
 
-def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | None = None,
-           visible: np.ndarray | None = None) -> Detections:
+def detect(
+    frame: np.ndarray,
+    cfg: DetectionConfig,
+    background: Background | None = None,
+    visible: np.ndarray | None = None,
+) -> Detections:
     """Segmentation (``cfg.method``), clean-up, splitting, regions and discrimination on one frame.
 
     With ``foreground``, ``background`` is the sequence's (:func:`quantile_background`, registered
-    to this frame and returned unchanged) or the previous frame's :attr:`Detections.background` (None on
-    the first frame, or for a frame on its own: bootstrapped from this one); ``visible``, the registered
-    visible frame (BGR) of an IR ``frame``, adds its own foreground (``fuse_visible``)."""
+    to this frame and returned unchanged) or the previous frame's :attr:`Detections.background`
+    (None on the first frame, or for a frame on its own: bootstrapped from this one); ``visible``,
+    the registered visible frame (BGR) of an IR ``frame``, adds its own foreground
+    (``fuse_visible``)."""
     if cfg.method == "stdm":
         s = stdm(frame, cfg.window_px)
         mask, contours = _clean_contours(segment(s, cfg), cfg)
@@ -605,16 +690,29 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
         ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
         return Detections(tuple(_unpad(r, cfg.window_px) for r in ok), tuple(bad), s, mask)
     grey = to_grey(frame)
-    bg = background if background is not None and background.estimate.shape == grey.shape else \
-        bootstrap_background(grey, cfg)
+    bg = (
+        background
+        if background is not None and background.estimate.shape == grey.shape
+        else bootstrap_background(grey, cfg)
+    )
     seen = bg
-    if bg.static and cfg.max_shift_px > 0:  # the camera's shake undone: the background moved onto this frame
+    # the camera's shake undone: the background moved onto this frame
+    if bg.static and cfg.max_shift_px > 0:
         dx, dy = frame_shift(bg.estimate, grey, cfg.max_shift_px)
-        seen = Background(shift_image(bg.estimate, dx, dy), bg.frames,
-                          None if bg.visible is None else shift_image(bg.visible, dx, dy), True)
+        seen = Background(
+            shift_image(bg.estimate, dx, dy),
+            bg.frames,
+            None if bg.visible is None else shift_image(bg.visible, dx, dy),
+            True,
+        )
     fg = foreground(grey, seen, cfg)
     lab = vfg = None
-    if cfg.uses_visible and visible is not None and visible.ndim == 3 and visible.shape[:2] == grey.shape:
+    if (
+        cfg.uses_visible
+        and visible is not None
+        and visible.ndim == 3
+        and visible.shape[:2] == grey.shape
+    ):
         lab = cv2.cvtColor(visible, cv2.COLOR_BGR2LAB).astype(np.float32)
         if seen.visible is not None:
             vfg = visible_foreground(lab, seen.visible, cfg)
@@ -628,14 +726,24 @@ def detect(frame: np.ndarray, cfg: DetectionConfig, background: Background | Non
         ok, bad = ok + more, bad + less
     if bg.static:
         return Detections(tuple(ok), tuple(bad), np.zeros((1, 1), np.float32), mask, bg)
-    # the background learns slowly only under what looks like a target (a region kept): a band or an edge the
-    # first frame's estimate got wrong is absorbed at the full rate
+    # the background learns slowly only under what looks like a target (a region kept): a band or
+    # an edge the first frame's estimate got wrong is absorbed at the full rate
     held = np.zeros_like(mask)
     if ok:
-        cv2.drawContours(held, [np.round(r.contour - 0.5).astype(np.int32).reshape(-1, 1, 2) for r in ok], -1, 1,
-                         thickness=cv2.FILLED)
-    return Detections(tuple(ok), tuple(bad), np.zeros((1, 1), np.float32), mask,
-                      update_background(bg, grey, held, cfg, lab))
+        cv2.drawContours(
+            held,
+            [np.round(r.contour - 0.5).astype(np.int32).reshape(-1, 1, 2) for r in ok],
+            -1,
+            1,
+            thickness=cv2.FILLED,
+        )
+    return Detections(
+        tuple(ok),
+        tuple(bad),
+        np.zeros((1, 1), np.float32),
+        mask,
+        update_background(bg, grey, held, cfg, lab),
+    )
 
 
 def _unpad(r: Region, window_px: int) -> Region:

@@ -1,4 +1,5 @@
-"""The target's extent from its colour: the pixels whose colour is likelier on the target than around it.
+"""The target's extent from its colour: the pixels whose colour is likelier on the target than
+around it.
 
 A box that keeps the first frame's aspect misses what a walking person's legs, a turning car or
 a cyclist's wheels add to it; the correlation filter's scale estimate is isotropic and the IR
@@ -71,9 +72,11 @@ class ExtentConfig(Section):
     max_ratio: float = param(1.8, gt=1)
 
 
-def surround_histogram(bins: np.ndarray, box: BBox, gap_fraction: float, n_bins: int) -> np.ndarray:
-    """Normalised histogram of the pixels of ``bins`` outside ``box`` grown by ``gap_fraction`` of its size per
-    side (``box`` in ``bins`` px; zeros when there is none)."""
+def surround_histogram(
+    bins: np.ndarray, box: BBox, gap_fraction: float, n_bins: int
+) -> np.ndarray:
+    """Normalised histogram of the pixels of ``bins`` outside ``box`` grown by ``gap_fraction`` of
+    its size per side (``box`` in ``bins`` px; zeros when there is none)."""
     H, W = bins.shape
     gx, gy = gap_fraction * box.w, gap_fraction * box.h
     x0, y0 = max(int(np.floor(box.x - gx)), 0), max(int(np.floor(box.y - gy)), 0)
@@ -85,15 +88,19 @@ def surround_histogram(bins: np.ndarray, box: BBox, gap_fraction: float, n_bins:
     return h / s if s > 0 else h
 
 
-def target_mask(bins: np.ndarray, q: np.ndarray, surround: np.ndarray, likelihood_ratio: float) -> np.ndarray:
-    """uint8 0/1: the pixels whose bin is ``likelihood_ratio`` times likelier under ``q`` than under ``surround``."""
+def target_mask(
+    bins: np.ndarray, q: np.ndarray, surround: np.ndarray, likelihood_ratio: float
+) -> np.ndarray:
+    """uint8 0/1: the pixels whose bin is ``likelihood_ratio`` times likelier under ``q`` than
+    under ``surround``."""
     keep = (q > 0) & (q >= likelihood_ratio * surround)
     return keep[bins].astype(np.uint8)
 
 
 def trimmed_range(counts: np.ndarray, trim_fraction: float) -> tuple[float, float]:
-    """The ``100 trim_fraction`` and ``100 (1 - trim_fraction)`` percentiles of the values ``0, 1, ...`` repeated
-    ``counts`` times, as :func:`numpy.percentile` gives them (its linear method) without sorting the values.
+    """The ``100 trim_fraction`` and ``100 (1 - trim_fraction)`` percentiles of the values ``0, 1,
+    ...`` repeated ``counts`` times, as :func:`numpy.percentile` gives them (its linear method)
+    without sorting the values.
 
     >>> trimmed_range(np.array([0, 2, 5, 3]), 0.1)
     (1.0, 3.0)
@@ -113,14 +120,15 @@ def trimmed_range(counts: np.ndarray, trim_fraction: float) -> tuple[float, floa
 
 
 def search_window(box: BBox, cfg: ExtentConfig) -> BBox:
-    """Where :func:`colour_extent` looks for the target's pixels: ``box`` grown by ``window_fraction`` of its mean
-    size on every side."""
+    """Where :func:`colour_extent` looks for the target's pixels: ``box`` grown by
+    ``window_fraction`` of its mean size on every side."""
     grow = cfg.window_fraction * float(np.sqrt(max(box.w * box.h, 0.0)))
     return BBox(box.x - grow, box.y - grow, box.w + 2 * grow, box.h + 2 * grow)
 
 
 def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig) -> BBox | None:
-    """The target's extent (``bins`` px) around ``box`` (``bins`` px, the current estimate), or None.
+    """The target's extent (``bins`` px) around ``box`` (``bins`` px, the current estimate), or
+    None.
 
     Parameters
     ----------
@@ -154,27 +162,45 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return None
     mask = target_mask(bins[y0:y1, x0:x1], q, surround, cfg.likelihood_ratio)
-    k = max(int(round(0.15 * min(box.w, box.h))) | 1, 3)
-    pad = cv2.copyMakeBorder(mask, k, k, k, k, cv2.BORDER_CONSTANT, value=0)  # no closing through the border
-    mask = cv2.morphologyEx(pad, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))[k:-k, k:-k]
+    k = max(round(0.15 * min(box.w, box.h)) | 1, 3)
+    pad = cv2.copyMakeBorder(
+        mask, k, k, k, k, cv2.BORDER_CONSTANT, value=0
+    )  # no closing through the border
+    mask = cv2.morphologyEx(
+        pad, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    )[k:-k, k:-k]
     mask = np.ascontiguousarray(mask)
     n, lab, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n < 2:
         return None
     # the component holding most of the target's pixels inside the current box
     ix0, iy0 = max(int(box.x) - x0, 0), max(int(box.y) - y0, 0)
-    ix1, iy1 = max(min(int(np.ceil(box.x2)) - x0, x1 - x0), ix0 + 1), max(min(int(np.ceil(box.y2)) - y0, y1 - y0), iy0 + 1)
+    ix1, iy1 = (
+        max(min(int(np.ceil(box.x2)) - x0, x1 - x0), ix0 + 1),
+        max(min(int(np.ceil(box.y2)) - y0, y1 - y0), iy0 + 1),
+    )
     inner = np.bincount(lab[iy0:iy1, ix0:ix1].ravel(), minlength=n)
     inner[0] = 0
     j = int(np.argmax(inner))
     if inner[j] == 0 or stats[j, cv2.CC_STAT_AREA] < cfg.min_fill * box.area:
         return None
-    sx, sy, sw, sh = (int(stats[j, k]) for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
+    sx, sy, sw, sh = (
+        int(stats[j, k])
+        for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT)
+    )
     # a set that reaches the window's edge (where the frame does not end) leaks into the surround
-    if (sx == 0 and x0 > 0) or (sy == 0 and y0 > 0) or (sx + sw == x1 - x0 and x1 < W) or (sy + sh == y1 - y0 and y1 < H):
+    if (
+        (sx == 0 and x0 > 0)
+        or (sy == 0 and y0 > 0)
+        or (sx + sw == x1 - x0 and x1 < W)
+        or (sy + sh == y1 - y0 and y1 < H)
+    ):
         return None
     part = lab == j
-    cols, rows = part.sum(axis=0), part.sum(axis=1)  # the component's pixels per column and per row
+    cols, rows = (
+        part.sum(axis=0),
+        part.sum(axis=1),
+    )  # the component's pixels per column and per row
     if cfg.trim_fraction > 0:
         ex0, ex1 = trimmed_range(cols, cfg.trim_fraction)
         ey0, ey1 = trimmed_range(rows, cfg.trim_fraction)

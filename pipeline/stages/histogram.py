@@ -52,7 +52,6 @@ class HistogramConfig(Section):
     value_bins: int = param(4, ge=1, le=256)
     intensity_bins: int = param(32, ge=2, le=256)
 
-
     @property
     def hsv_bins(self) -> int:
         """Number of bins m of the HSV histogram."""
@@ -94,15 +93,16 @@ def hsv_bin_image(bgr: NDArray[np.uint8], cfg: HistogramConfig) -> np.ndarray:
     if luts is None:
         luts = _LUT_CACHE.setdefault(cfg, _luts(cfg))
     hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
-    if luts[0].dtype == np.uint8:  # the three looked-up parts sum to a bin index < 256: no overflow
+    # the three looked-up parts sum to a bin index < 256: no overflow
+    if luts[0].dtype == np.uint8:
         return _bin_sum(hsv, luts[0], luts[1], luts[2])
     return luts[0][hsv[..., 0]] + luts[1][hsv[..., 1]] + luts[2][hsv[..., 2]]
 
 
 @numba.njit(cache=True, boundscheck=False, nogil=True)
 def _bin_sum(hsv, lut_h, lut_s, lut_v):  # pragma: no cover (compiled)
-    """``lut_h[h] + lut_s[s] + lut_v[v]`` per pixel in one pass (uint8; the old route was cv2.split,
-    three cv2.LUT and two cv2.add: 107 vs 35 us on a 70x100 region, identical bins)."""
+    """``lut_h[h] + lut_s[s] + lut_v[v]`` per pixel in one pass (uint8; the old route was
+    cv2.split, three cv2.LUT and two cv2.add: 107 vs 35 us on a 70x100 region, identical bins)."""
     H, W = hsv.shape[0], hsv.shape[1]
     out = np.empty((H, W), np.uint8)
     for i in range(H):
@@ -136,7 +136,9 @@ class KernelWindow:
     mass_fraction: float
 
 
-def kernel_window(shape: tuple[int, ...], cx: float, cy: float, hx: float, hy: float) -> KernelWindow:
+def kernel_window(
+    shape: tuple[int, ...], cx: float, cy: float, hx: float, hy: float
+) -> KernelWindow:
     """Kernel support of the ellipse centred at ``(cx, cy)`` with half-axes ``(hx, hy)``.
 
     Coordinates are px of the image whose ``shape`` is given (pixel centres at +0.5).
@@ -233,10 +235,12 @@ def ellipse_shift(bins, weights, cx, cy, hx, hy):  # pragma: no cover (compiled)
     return sw, sx, sy
 
 
-def ellipse_model(bins: NDArray[np.int32], cx: float, cy: float, hx: float, hy: float,
-                  n_bins: int) -> tuple[NDArray[np.float64], int, float]:
+def ellipse_model(
+    bins: NDArray[np.int32], cx: float, cy: float, hx: float, hy: float, n_bins: int
+) -> tuple[NDArray[np.float64], int, float]:
     """Normalized kernel histogram of an ellipse (zeros if it has no pixel in ``bins``), its pixel
-    count and the share of the full ellipse's kernel mass inside the image (as ``KernelWindow``)."""
+    count and the share of the full ellipse's kernel mass inside the image (as ``KernelWindow``).
+    """
     if hx <= 0 or hy <= 0:
         raise ValueError(f"half-axes must be positive; got ({hx}, {hy})")
     h, mass, n = ellipse_histogram(bins, float(cx), float(cy), float(hx), float(hy), n_bins)
@@ -245,7 +249,9 @@ def ellipse_model(bins: NDArray[np.int32], cx: float, cy: float, hx: float, hy: 
     return (h / s if s > 0 else h), int(n), float(min(mass / full_mass, 1.0))
 
 
-def window_histogram(bins: NDArray[np.int32], win: KernelWindow, n_bins: int) -> NDArray[np.float64]:
+def window_histogram(
+    bins: NDArray[np.int32], win: KernelWindow, n_bins: int
+) -> NDArray[np.float64]:
     """Normalized kernel histogram (eq. 1-2) of the pixels of ``win``; zeros if empty."""
     if win.k.size == 0:
         return np.zeros(n_bins, np.float64)
@@ -283,7 +289,8 @@ def bhattacharyya(p: NDArray[np.float64], q: NDArray[np.float64]) -> float:
 
 
 def bhattacharyya_distance(rho: float) -> float:
-    """Distance ``d = sqrt(1 - rho)`` (what ``cv2.compareHist(..., HISTCMP_BHATTACHARYYA)`` gives)."""
+    """Distance ``d = sqrt(1 - rho)`` (what ``cv2.compareHist(..., HISTCMP_BHATTACHARYYA)``
+    gives)."""
     return float(np.sqrt(max(1.0 - rho, 0.0)))
 
 
@@ -329,15 +336,19 @@ def search_roi(box: BBox, margin: float, width: int, height: int) -> tuple[int, 
 @cache
 def warm_up() -> None:
     """Compile (first run) or load from numba's cache the compiled histogram loops, so a tracker's
-    first frame does not pay for it (0.1-0.3 s even from the cache, otherwise counted as tracking time).
-    Runs once per process."""
-    for dtype in (np.int32, np.uint8):  # colour bins (hsv_bin_image) and intensity bins (intensity_bin_image)
+    first frame does not pay for it (0.1-0.3 s even from the cache, otherwise counted as tracking
+    time). Runs once per process."""
+    for dtype in (
+        np.int32,
+        np.uint8,
+    ):  # colour bins (hsv_bin_image) and intensity bins (intensity_bin_image)
         bins = np.zeros((4, 4), dtype)
         ellipse_histogram(bins, 2.0, 2.0, 1.5, 1.5, 2)
         ellipse_shift(bins, np.ones(2), 2.0, 2.0, 1.5, 1.5)
-    ellipse_histogram(np.zeros((4, 4), np.uint8), 2.0, 2.0, 1.5, 1.5, 2, np.ones((4, 4), bool))  # CamShift's test
+    ellipse_histogram(
+        np.zeros((4, 4), np.uint8), 2.0, 2.0, 1.5, 1.5, 2, np.ones((4, 4), bool)
+    )  # CamShift's test
     hsv_bin_image(np.zeros((2, 2, 3), np.uint8), HistogramConfig())
     image = np.zeros((4, 4, 3), np.uint8)
     bright_fraction(image, 30.0)
     bright_fraction(image[1:3, 1:3], 30.0)  # frame crops are not contiguous
-

@@ -1,14 +1,15 @@
-"""Kalman motion stage over the box ``(x, y, w, h)`` (centre and size, px), shared by every tracker.
+"""Kalman motion stage over the box ``(x, y, w, h)`` (centre and size, px), shared by every
+tracker.
 
 Two models, ``dt`` = 1 frame by default (the Kalman-CAMShift paper's 12-state model and
 a constant-velocity variant)::
 
     constant acceleration:  s = [x, y, w, h, x', y', w', h', x'', y'', w'', h'']  (12)
-        F = [[I, dt I, dt^2/2 I], [0, I, dt I], [0, 0, I]]
-        Q = q * [[dt^5/20, dt^4/8, dt^3/6], [dt^4/8, dt^3/3, dt^2/2], [dt^3/6, dt^2/2, dt]]   (white jerk)
+        F = [[I, dt I, dt^2/2 I], [0, I, dt I], [0, 0, I]] Q = q * [[dt^5/20, dt^4/8, dt^3/6],
+        [dt^4/8, dt^3/3, dt^2/2], [dt^3/6, dt^2/2, dt]]   (white jerk)
     constant velocity:      s = [x, y, w, h, x', y', w', h']                          (8)
-        F = [[I, dt I], [0, I]]
-        Q = q * [[dt^3/3, dt^2/2], [dt^2/2, dt]]                                          (white acceleration)
+        F = [[I, dt I], [0, I]] Q = q * [[dt^3/3, dt^2/2], [dt^2/2, dt]]
+        (white acceleration)
 
 with ``q`` = ``position_noise`` for x, y and ``size_noise`` for w, h; ``z = H s = (x, y, w, h)``
 and ``R = diag(sigma_p^2, sigma_p^2, sigma_s^2, sigma_s^2)``.
@@ -70,7 +71,9 @@ class KalmanConfig(Section):
 
     section = "kalman"
 
-    model: str = param("constant_acceleration", choices=("constant_acceleration", "constant_velocity"))
+    model: str = param(
+        "constant_acceleration", choices=("constant_acceleration", "constant_velocity")
+    )
     dt_frames: float = param(1.0, gt=0)
     position_noise: float = param(0.01, gt=0)
     size_noise: float = param(0.005, gt=0)
@@ -81,7 +84,6 @@ class KalmanConfig(Section):
     maneuver_adaptive: bool = False
     maneuver_sigma: float = param(3.0, gt=0)
     maneuver_cap: float = param(100.0, ge=1)
-
 
     @property
     def order(self) -> int:
@@ -113,7 +115,8 @@ class GaussianState:
 
 @dataclass(frozen=True)
 class KalmanUpdate:
-    """Result of a measurement update: the posterior and the innovation ``y`` with covariance ``S``."""
+    """Result of a measurement update: the posterior and the innovation ``y`` with covariance
+    ``S``."""
 
     state: GaussianState
     innovation: np.ndarray
@@ -129,7 +132,13 @@ def _blocks(order: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """1-D transition and white-noise (unit intensity) blocks for one coordinate."""
     if order == 3:
         f = np.array([[1, dt, dt * dt / 2], [0, 1, dt], [0, 0, 1]], float)
-        q = np.array([[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2], [dt**3 / 6, dt**2 / 2, dt]])
+        q = np.array(
+            [
+                [dt**5 / 20, dt**4 / 8, dt**3 / 6],
+                [dt**4 / 8, dt**3 / 3, dt**2 / 2],
+                [dt**3 / 6, dt**2 / 2, dt],
+            ]
+        )
     else:
         f = np.array([[1, dt], [0, 1]], float)
         q = np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
@@ -167,7 +176,8 @@ def box_measurement(box: BBox) -> np.ndarray:
 
 
 def init_state(box: BBox, cfg: KalmanConfig) -> GaussianState:
-    """State at the first detection: the box, zero velocity and acceleration, P0 = diag(R, v^2 I, a^2 I)."""
+    """State at the first detection: the box, zero velocity and acceleration, P0 = diag(R, v^2 I,
+    a^2 I)."""
     x = np.zeros(cfg.dim)
     x[:4] = box_measurement(box)
     _, R = measurement_model(cfg)
@@ -178,18 +188,24 @@ def init_state(box: BBox, cfg: KalmanConfig) -> GaussianState:
     return GaussianState(x, np.diag(np.concatenate(var)))
 
 
-def predict(state: GaussianState, F: np.ndarray, Q: np.ndarray, fading: float = 1.0) -> GaussianState:
+def predict(
+    state: GaussianState, F: np.ndarray, Q: np.ndarray, fading: float = 1.0
+) -> GaussianState:
     """Prior of the next step: ``x = F x``, ``P = fading * F P F^T + Q`` (fading 1 = plain Kalman).
 
-    filterpy's ``predict`` operation for operation (``alpha = sqrt(fading)``, column state), without
-    its argument handling; equal to it bit for bit (tested)."""
+    filterpy's ``predict`` operation for operation (``alpha = sqrt(fading)``, column state),
+    without its argument handling; equal to it bit for bit (tested)."""
     alpha = np.sqrt(fading)
-    x = np.dot(F, state.x.reshape(-1, 1)) + 0.0  # filterpy adds dot(B, u) = 0 (turning -0.0 into 0.0)
+    x = (
+        np.dot(F, state.x.reshape(-1, 1)) + 0.0
+    )  # filterpy adds dot(B, u) = 0 (turning -0.0 into 0.0)
     P = (alpha * alpha) * np.dot(np.dot(F, state.P), F.T) + Q
     return GaussianState(x.ravel(), P)
 
 
-def innovation(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def innovation(
+    prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Innovation ``y = z - H x`` and its covariance ``S = H P H^T + R`` (no update)."""
     y = np.asarray(z, float) - H @ prior.x
     S = H @ prior.P @ H.T + R
@@ -200,7 +216,8 @@ def update(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) ->
     """Posterior after measuring ``z`` (4,), with the innovation and its covariance.
 
     filterpy's ``update`` (Joseph form) operation for operation on column vectors, without its
-    argument handling, and with the innovation and S it computes; equal to it bit for bit (tested)."""
+    argument handling, and with the innovation and S it computes; equal to it bit for bit (tested).
+    """
     y, S = innovation(prior, z, H, R)
     P0 = prior.P
     K = np.dot(np.dot(P0, H.T), np.linalg.inv(S))
@@ -210,7 +227,9 @@ def update(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray) ->
     return KalmanUpdate(GaussianState(x.ravel(), P), y, S)
 
 
-def maneuver_factor(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, sigma: float) -> float:
+def maneuver_factor(
+    prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, sigma: float
+) -> float:
     """a_max of eq. 23-25: per measured component i, with innovation tau_i, delta_ii =
     [H P H^T]_ii and R_ii, a_i = ((tau_i / sigma)^2 - R_ii) / delta_ii (the factor that
     makes |tau_i| = sigma sqrt(a_i delta_ii + R_ii)); a_i > 1 exactly when |tau_i| >
@@ -221,7 +240,9 @@ def maneuver_factor(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.nd
     return float(a.max())
 
 
-def correct(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, cfg: KalmanConfig) -> KalmanUpdate:
+def correct(
+    prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, cfg: KalmanConfig
+) -> KalmanUpdate:
     """:func:`update`, after inflating the predicted covariance by ``a_max`` (capped) when
     ``cfg.maneuver_adaptive`` and the innovation says the target manoeuvres (a_max > 1)."""
     if cfg.maneuver_adaptive:
@@ -233,5 +254,5 @@ def correct(prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, c
 
 def log_likelihood(y: np.ndarray, S: np.ndarray) -> float:
     """Gaussian log-density of the innovation: ``-(y^T S^-1 y + ln|2 pi S|) / 2``."""
-    sign, logdet = np.linalg.slogdet(2 * np.pi * S)
+    _sign, logdet = np.linalg.slogdet(2 * np.pi * S)
     return float(-0.5 * (y @ np.linalg.solve(S, y) + logdet))

@@ -1,4 +1,5 @@
-"""DRLSE: distance-regularized level-set evolution (Li, Xu, Gui, Fox 2010; eq. 5-6 of the dual-channel paper).
+"""DRLSE: distance-regularized level-set evolution (Li, Xu, Gui, Fox 2010; eq. 5-6 of the
+dual-channel paper).
 
 Energy ``E(phi) = mu R_p(phi) + lambda L_g(phi) + alpha A_g(phi)`` with the double-well
 potential ``p2``, edge indicator ``g = 1 / (1 + |grad(G_sigma * I)|^2 / kappa^2)`` and
@@ -121,7 +122,8 @@ class LevelSetConfig(Section):
         if not self.distance_weight * self.timestep < 0.25:
             raise ValueError(
                 "levelset.distance_weight x levelset.timestep must be < 0.25 for stability; got "
-                f"{self.distance_weight} x {self.timestep} = {self.distance_weight * self.timestep:g}"
+                f"{self.distance_weight} x {self.timestep} = "
+                f"{self.distance_weight * self.timestep:g}"
             )
         if not self.step_height > self.dirac_width:
             raise ValueError("levelset.step_height must exceed levelset.dirac_width")
@@ -149,12 +151,14 @@ def _central_diff(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _central_diff_fast(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(d/dx, d/dy) by central differences, replicated border, float32: the values of
-    ``cv2.Sobel(a, CV_32F, 1, 0 / 0, 1, ksize=1, scale=0.5, BORDER_REPLICATE)`` (tested equal) in one
-    compiled pass instead of two OpenCV calls (7 vs 38 us on a 96x48 region)."""
+    ``cv2.Sobel(a, CV_32F, 1, 0 / 0, 1, ksize=1, scale=0.5, BORDER_REPLICATE)`` (tested equal) in
+    one compiled pass instead of two OpenCV calls (7 vs 38 us on a 96x48 region)."""
     return _diff_pair(np.ascontiguousarray(a, dtype=np.float32))
 
 
-@numba.njit(cache=True, boundscheck=False, nogil=True)  # no fastmath: the same float32 arithmetic as OpenCV's
+@numba.njit(
+    cache=True, boundscheck=False, nogil=True
+)  # no fastmath: the same float32 arithmetic as OpenCV's
 def _diff_pair(a):  # pragma: no cover (compiled)
     """Flat unsigned indices (no wrap-around checks), the interior of each row in one loop."""
     H, W = a.shape
@@ -192,13 +196,17 @@ def edge_map(ir: np.ndarray, cfg: LevelSetConfig) -> EdgeMap:
     """
     if ir.ndim != 2:
         raise ValueError(f"ir must be a (H, W) image; got shape {ir.shape}")
-    f = cv2.GaussianBlur(ir.astype(np.float32), (0, 0), cfg.smoothing_sigma_px, borderType=cv2.BORDER_REFLECT)
+    f = cv2.GaussianBlur(
+        ir.astype(np.float32), (0, 0), cfg.smoothing_sigma_px, borderType=cv2.BORDER_REFLECT
+    )
     ix, iy = _central_diff_fast(f)
     mag2 = ix * ix + iy * iy
     kappa = cfg.edge_scale
     if cfg.edge_scale_auto:
         sample = mag2[::2, ::2].ravel()
-        kappa = max(kappa, 3.0 * float(np.sqrt(np.partition(sample, sample.size // 2)[sample.size // 2])))
+        kappa = max(
+            kappa, 3.0 * float(np.sqrt(np.partition(sample, sample.size // 2)[sample.size // 2]))
+        )
     g = 1.0 / (1.0 + mag2 * np.float32(1.0 / (kappa * kappa)))
     gx, gy = _central_diff_fast(g)
     return EdgeMap(g, gx, gy, kappa)
@@ -211,16 +219,18 @@ def binary_step(shape: tuple[int, int], inside: np.ndarray, c0: float) -> NDArra
     return phi
 
 
-def box_step(shape: tuple[int, int], box: tuple[float, float, float, float], c0: float) -> NDArray[np.float32]:
+def box_step(
+    shape: tuple[int, int], box: tuple[float, float, float, float], c0: float
+) -> NDArray[np.float32]:
     """phi0 = -c0 inside the box ``(x, y, w, h)`` (pixels whose centre lies in it), +c0 outside.
 
     The box is kept at least 2 px inside the array so the Neumann border stays clear.
     """
     h, w = shape
-    x0 = max(int(round(box[0])), 2)
-    y0 = max(int(round(box[1])), 2)
-    x1 = min(int(round(box[0] + box[2])), w - 2)
-    y1 = min(int(round(box[1] + box[3])), h - 2)
+    x0 = max(round(box[0]), 2)
+    y0 = max(round(box[1]), 2)
+    x1 = min(round(box[0] + box[2]), w - 2)
+    y1 = min(round(box[1] + box[3]), h - 2)
     phi = np.full(shape, c0, np.float32)
     if x1 > x0 and y1 > y0:
         phi[y0:y1, x0:x1] = -c0
@@ -236,7 +246,9 @@ def _neumann(phi: np.ndarray) -> None:
 
 
 def _dirac(x: np.ndarray, eps: float) -> np.ndarray:
-    return np.where(np.abs(x) <= eps, (1.0 / (2 * eps)) * (1 + np.cos(np.pi * x / eps)), 0.0).astype(np.float32)
+    return np.where(
+        np.abs(x) <= eps, (1.0 / (2 * eps)) * (1 + np.cos(np.pi * x / eps)), 0.0
+    ).astype(np.float32)
 
 
 def _dp2(s: np.ndarray) -> np.ndarray:
@@ -245,7 +257,8 @@ def _dp2(s: np.ndarray) -> np.ndarray:
 
 
 def reference_step(phi: np.ndarray, em: EdgeMap, cfg: LevelSetConfig, alpha: float) -> np.ndarray:
-    """One DRLSE iteration, vectorized numpy (Li's reference discretization). Returns the new phi."""
+    """One DRLSE iteration, vectorized numpy (Li's reference discretization). Returns the new
+    phi."""
     phi = phi.astype(np.float32, copy=True)
     _neumann(phi)
     px, py = _central_diff(phi)
@@ -263,11 +276,16 @@ def reference_step(phi: np.ndarray, em: EdgeMap, cfg: LevelSetConfig, alpha: flo
     de = _dirac(phi, cfg.dirac_width)
     edge = de * (em.gx * nx + em.gy * ny + em.g * curv)
     area = em.g * de
-    return phi + np.float32(cfg.timestep) * (np.float32(cfg.distance_weight) * dist
-                                            + np.float32(cfg.length_weight) * edge + np.float32(alpha) * area)
+    return phi + np.float32(cfg.timestep) * (
+        np.float32(cfg.distance_weight) * dist
+        + np.float32(cfg.length_weight) * edge
+        + np.float32(alpha) * area
+    )
 
 
-def evolve_reference(phi0: np.ndarray, em: EdgeMap, cfg: LevelSetConfig, iterations: int, alpha: float | None = None) -> np.ndarray:
+def evolve_reference(
+    phi0: np.ndarray, em: EdgeMap, cfg: LevelSetConfig, iterations: int, alpha: float | None = None
+) -> np.ndarray:
     """``iterations`` reference steps (no stopping rule): the oracle for the fast kernel."""
     phi = phi0.astype(np.float32, copy=True)
     a = cfg.area_weight if alpha is None else alpha
@@ -293,7 +311,8 @@ def _luts(eps: float) -> tuple[np.ndarray, np.ndarray]:
 
 @numba.njit(cache=True, boundscheck=False, nogil=True)
 def _mirror_border(phi):  # pragma: no cover (compiled)
-    """Neumann border in place, as :func:`_neumann`: the outer rows/columns copy the second ones in."""
+    """Neumann border in place, as :func:`_neumann`: the outer rows/columns copy the second ones
+    in."""
     H, W = phi.shape
     for j in range(W):
         phi[0, j] = phi[2, j]
@@ -328,10 +347,29 @@ def _near_at(pf, k, i, j, H, uW, band):  # pragma: no cover (compiled)
     return np.uint8(v)
 
 
-# error_model numpy: no zero test before each division (none divides by zero: 1 / (s + tiny), 1 / s for s >= 1)
+# error_model numpy: no zero test before each division (none divides by zero: 1 / (s + tiny), 1 / s
+# for s >= 1)
 @numba.njit(cache=True, boundscheck=False, fastmath=True, error_model="numpy", nogil=True)
-def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_lut, de_lut,
-                     check_every, stop_back, stop_tol, areas, n_refine):  # pragma: no cover
+def _band_iterations(
+    phi,
+    g,
+    gx,
+    gy,
+    n_iter,
+    mu,
+    lam,
+    alpha,
+    eps,
+    dt,
+    band,
+    dps_lut,
+    de_lut,
+    check_every,
+    stop_back,
+    stop_tol,
+    areas,
+    n_refine,
+):  # pragma: no cover
     """``n_iter`` DRLSE iterations in place on ``phi`` (float32), updating only a narrow band.
 
     Same arithmetic as :func:`reference_step`. ``near``: |phi| < band or a sign change to
@@ -400,7 +438,9 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                 n_checks += 1
                 if area == 0:
                     break
-                stop = n_checks > stop_back and abs(area - areas[n_checks - 1 - stop_back]) <= max(1.0, stop_tol * area)
+                stop = n_checks > stop_back and abs(area - areas[n_checks - 1 - stop_back]) <= max(
+                    1.0, stop_tol * area
+                )
             if stop:  # the main phase is over: refine with alpha = 0 if anything is inside
                 _mirror_border(phi)
                 if n_refine == 0 or not _any_negative(pf):
@@ -439,8 +479,13 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                 for j in range(J0, J1 + u1):
                     k = base + j
                     p = pf[k]
-                    v = np.uint8((abs(p) < band) | (p * pf[k + u1] <= 0) | (p * pf[k - u1] <= 0)
-                                 | (p * pf[k + uW] <= 0) | (p * pf[k - uW] <= 0))
+                    v = np.uint8(
+                        (abs(p) < band)
+                        | (p * pf[k + u1] <= 0)
+                        | (p * pf[k - u1] <= 0)
+                        | (p * pf[k + uW] <= 0)
+                        | (p * pf[k - uW] <= 0)
+                    )
                     near[k] = v
                     rowany |= v
                     colany[j] |= v
@@ -532,8 +577,11 @@ def _band_iterations(phi, g, gx, gy, n_iter, mu, lam, alpha, eps, dt, band, dps_
                     continue
                 p = pf[k]
                 curv = half * (nx[k + u1] - nx[k - u1]) + half * (ny[k + uW] - ny[k - uW])
-                dist = half * (qx[k + u1] - qx[k - u1]) + half * (qy[k + uW] - qy[k - uW]) + (
-                    pf[k + uW] + pf[k - uW] + pf[k + u1] + pf[k - u1] - 4 * p)
+                dist = (
+                    half * (qx[k + u1] - qx[k - u1])
+                    + half * (qy[k + uW] - qy[k - uW])
+                    + (pf[k + uW] + pf[k - uW] + pf[k + u1] + pf[k - u1] - 4 * p)
+                )
                 if abs(p) <= eps:
                     u = (p + eps) * de_scale
                     kk = min(int(u), lut_n - 1)
@@ -594,7 +642,9 @@ def evolve(
         Called with an :class:`EvolveIter` at every check.
     """
     if phi0.shape != em.g.shape:
-        raise ValueError(f"phi0 {phi0.shape} and the edge map {em.g.shape} must have the same shape")
+        raise ValueError(
+            f"phi0 {phi0.shape} and the edge map {em.g.shape} must have the same shape"
+        )
     if min(phi0.shape) < 5:
         raise ValueError(f"the level-set region must be at least 5x5 px; got {phi0.shape}")
     phi = np.ascontiguousarray(phi0, dtype=np.float32).copy()
@@ -604,9 +654,26 @@ def evolve(
     eps, dt, band = np.float32(cfg.dirac_width), np.float32(cfg.timestep), np.float32(cfg.band_px)
     areas = np.zeros(cap // cfg.check_every + 2, np.int64)
     alpha = np.float32(cfg.area_weight_warm if warm else cfg.area_weight)
-    it, n_checks, refined = _band_iterations(phi, em.g, em.gx, em.gy, cap, mu, lam, alpha, eps, dt, band,
-                                             dps_lut, de_lut, cfg.check_every, cfg.stop_window // cfg.check_every,
-                                             cfg.stop_tolerance, areas, cfg.refine_iterations)
+    it, n_checks, refined = _band_iterations(
+        phi,
+        em.g,
+        em.gx,
+        em.gy,
+        cap,
+        mu,
+        lam,
+        alpha,
+        eps,
+        dt,
+        band,
+        dps_lut,
+        de_lut,
+        cfg.check_every,
+        cfg.stop_window // cfg.check_every,
+        cfg.stop_tolerance,
+        areas,
+        cfg.refine_iterations,
+    )
     converged = it < cap and n_checks > 0 and areas[n_checks - 1] > 0
     if iter_callback is not None:
         for k in range(n_checks):
@@ -618,9 +685,9 @@ def evolve(
 
 @cache
 def warm_up() -> None:
-    """Compile (first run) or load from numba's cache (later runs) the level-set kernel by evolving a
-    16x16 region once, so that a tracker's first frame does not pay for it: a cold compile takes
-    seconds and would otherwise be counted as tracking time (``fps_tracking``). Runs once per process."""
+    """Compile (first run) or load from numba's cache (later runs) the level-set kernel by evolving
+    a 16x16 region once, so that a tracker's first frame does not pay for it: a cold compile takes
+    seconds and would otherwise be counted as tracking time (``fps_tracking``). Runs once per
+    process."""
     em = edge_map(np.zeros((16, 16), np.uint8), LevelSetConfig())  # also compiles _diff_pair
     evolve(box_step((16, 16), (4.0, 4.0, 8.0, 8.0), 2.0), em, LevelSetConfig())
-

@@ -90,8 +90,9 @@ class MeanShiftResult:
     no_support: bool
 
 
-def _model(bins: NDArray[np.int32], c: tuple[float, float], half: tuple[float, float],
-           m: int) -> tuple[NDArray[np.float64], int, float]:
+def _model(
+    bins: NDArray[np.int32], c: tuple[float, float], half: tuple[float, float], m: int
+) -> tuple[NDArray[np.float64], int, float]:
     return ellipse_model(bins, c[0], c[1], half[0], half[1], m)
 
 
@@ -138,7 +139,9 @@ def mean_shift(
         ratio = np.zeros(m, np.float64)
         nz = p0 > 0
         ratio[nz] = np.sqrt(q[nz] / p0[nz])
-        ws, wx, wy = ellipse_shift(bins, ratio, y0[0], y0[1], float(half_size[0]), float(half_size[1]))
+        ws, wx, wy = ellipse_shift(
+            bins, ratio, y0[0], y0[1], float(half_size[0]), float(half_size[1])
+        )
         if ws <= 0:
             return MeanShiftResult(y0, rho0, p0, it - 1, False, halvings, mass0, True)
         y1 = (wx / ws, wy / ws)

@@ -30,15 +30,21 @@ from pipeline.types import BBox
 
 
 def merge_test(a: BBox, b: BBox, scale: float = 1.0) -> bool:
-    """Eq. 10 on rows and columns: ``|cx_a - cx_b| < (w_a + w_b)/2`` and ``|cy_a - cy_b| < (h_a + h_b)/2``
-    (``scale`` < 1 asks for a deeper overlap)."""
-    return abs(a.cx - b.cx) < scale * (a.w + b.w) / 2 and abs(a.cy - b.cy) < scale * (a.h + b.h) / 2
+    """Eq. 10 on rows and columns: ``|cx_a - cx_b| < (w_a + w_b)/2`` and ``|cy_a - cy_b| < (h_a +
+    h_b)/2`` (``scale`` < 1 asks for a deeper overlap)."""
+    return (
+        abs(a.cx - b.cx) < scale * (a.w + b.w) / 2 and abs(a.cy - b.cy) < scale * (a.h + b.h) / 2
+    )
 
 
-def merge_groups(boxes: dict[int, BBox], strict: frozenset[int] | set[int] = frozenset(),
-                 strict_scale: float = 1.0) -> list[tuple[int, ...]]:
-    """Groups (sorted id tuples, two or more members) of targets linked by pairwise merges; a pair with a
-    member in ``strict`` (just split) merges only under ``merge_test(..., strict_scale)``."""
+def merge_groups(
+    boxes: dict[int, BBox],
+    strict: frozenset[int] | set[int] = frozenset(),
+    strict_scale: float = 1.0,
+) -> list[tuple[int, ...]]:
+    """Groups (sorted id tuples, two or more members) of targets linked by pairwise merges; a pair
+    with a member in ``strict`` (just split) merges only under ``merge_test(..., strict_scale)``.
+    """
     ids = sorted(boxes)
     parent = {i: i for i in ids}
 
@@ -49,8 +55,10 @@ def merge_groups(boxes: dict[int, BBox], strict: frozenset[int] | set[int] = fro
         return i
 
     for k, i in enumerate(ids):
-        for j in ids[k + 1:]:
-            if merge_test(boxes[i], boxes[j], strict_scale if (i in strict or j in strict) else 1.0):
+        for j in ids[k + 1 :]:
+            if merge_test(
+                boxes[i], boxes[j], strict_scale if (i in strict or j in strict) else 1.0
+            ):
                 parent[find(i)] = find(j)
     groups: dict[int, list[int]] = {}
     for i in ids:
@@ -59,7 +67,8 @@ def merge_groups(boxes: dict[int, BBox], strict: frozenset[int] | set[int] = fro
 
 
 def choose_foreground(rhos: dict[int, float], distances: dict[int, float] | None = None) -> int:
-    """The target with the highest colour match; without colour (NaN), the one nearest the blob centre."""
+    """The target with the highest colour match; without colour (NaN), the one nearest the blob
+    centre."""
     valid = {i: r for i, r in rhos.items() if not math.isnan(r)}
     if valid:
         return max(sorted(valid), key=lambda i: valid[i])
@@ -68,22 +77,31 @@ def choose_foreground(rhos: dict[int, float], distances: dict[int, float] | None
     return min(rhos)
 
 
-def eq11(merged_center: tuple[float, float], foreground: tuple[float, float]) -> tuple[float, float]:
+def eq11(
+    merged_center: tuple[float, float], foreground: tuple[float, float]
+) -> tuple[float, float]:
     """Eq. 11: the occluded target of a pair, ``2 y2 - y_foreground``."""
     return (2 * merged_center[0] - foreground[0], 2 * merged_center[1] - foreground[1])
 
 
-def inside_blob(center: tuple[float, float], size: tuple[float, float], blob: BBox) -> tuple[float, float]:
-    """``center`` moved the least distance that puts a box of ``size`` inside ``blob``, per axis; on an
-    axis where the box is larger than the blob, the blob's centre."""
+def inside_blob(
+    center: tuple[float, float], size: tuple[float, float], blob: BBox
+) -> tuple[float, float]:
+    """``center`` moved the least distance that puts a box of ``size`` inside ``blob``, per axis;
+    on an axis where the box is larger than the blob, the blob's centre."""
     out = []
-    for c, s, lo, hi in ((center[0], size[0], blob.x, blob.x2), (center[1], size[1], blob.y, blob.y2)):
+    for c, s, lo, hi in (
+        (center[0], size[0], blob.x, blob.x2),
+        (center[1], size[1], blob.y, blob.y2),
+    ):
         a, b = lo + s / 2, hi - s / 2
         out.append((lo + hi) / 2 if a > b else min(max(c, a), b))
     return out[0], out[1]
 
 
-def association_cost(rho: np.ndarray, distance: np.ndarray, scale: np.ndarray, motion_weight: float) -> np.ndarray:
+def association_cost(
+    rho: np.ndarray, distance: np.ndarray, scale: np.ndarray, motion_weight: float
+) -> np.ndarray:
     """Cost of giving blob j to target i: ``(1 - rho_ij) + w * d_ij / scale_i``.
 
     ``rho`` is the colour match of target i's model at blob j (the paper's criterion), ``d``
@@ -103,8 +121,13 @@ def associate(cost: np.ndarray) -> list[tuple[int, int]]:
     return [(int(i), int(j)) for i, j in zip(r, c, strict=True)]
 
 
-def kmeans_shares(mask: np.ndarray, origin: tuple[int, int], centers: list[tuple[float, float]],
-                  sizes: list[tuple[float, float]], iterations: int = 5) -> list[tuple[float, float] | None]:
+def kmeans_shares(
+    mask: np.ndarray,
+    origin: tuple[int, int],
+    centers: list[tuple[float, float]],
+    sizes: list[tuple[float, float]],
+    iterations: int = 5,
+) -> list[tuple[float, float] | None]:
     """Centres of the members of a merged blob by k-means on its pixels (beyond the paper).
 
     Starts from the predicted ``centers``; each pass gives every pixel of ``mask`` to the
@@ -121,7 +144,9 @@ def kmeans_shares(mask: np.ndarray, origin: tuple[int, int], centers: list[tuple
     sz = np.array(sizes, float)
     out: list[tuple[float, float] | None] = [None] * len(centers)
     for _ in range(max(iterations, 1)):
-        d = ((px[None, :] - c[:, :1]) / sz[:, :1]) ** 2 + ((py[None, :] - c[:, 1:]) / sz[:, 1:]) ** 2
+        d = ((px[None, :] - c[:, :1]) / sz[:, :1]) ** 2 + (
+            (py[None, :] - c[:, 1:]) / sz[:, 1:]
+        ) ** 2
         owner = np.argmin(d, axis=0)
         for k in range(len(centers)):
             sel = owner == k
@@ -144,7 +169,7 @@ def lookalike_sets(models: dict[int, np.ndarray], min_rho: float) -> list[tuple[
         return i
 
     for k, i in enumerate(ids):
-        for j in ids[k + 1:]:
+        for j in ids[k + 1 :]:
             if float(np.sqrt(models[i] * models[j]).sum()) >= min_rho:
                 parent[find(i)] = find(j)
     groups: dict[int, list[int]] = {}
@@ -153,8 +178,12 @@ def lookalike_sets(models: dict[int, np.ndarray], min_rho: float) -> list[tuple[
     return sorted(tuple(g) for g in groups.values() if len(g) >= 2)
 
 
-def choose_foreground_stable(rhos: dict[int, float], previous: int | None, margin: float,
-                             distances: dict[int, float] | None = None) -> int:
+def choose_foreground_stable(
+    rhos: dict[int, float],
+    previous: int | None,
+    margin: float,
+    distances: dict[int, float] | None = None,
+) -> int:
     """:func:`choose_foreground` with hysteresis: the previous foreground keeps its role unless
     another target's colour match exceeds its own by ``margin``."""
     best = choose_foreground(rhos, distances)

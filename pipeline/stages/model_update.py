@@ -117,8 +117,13 @@ class UpdateDecision:
         return f"{'updated' if self.update else 'frozen'}:{self.reason}"
 
 
-def should_update_model(rho_at_y2: float, occluded: bool, colour_informative: bool, contour_ok: bool,
-                        cfg: ModelUpdateConfig) -> UpdateDecision:
+def should_update_model(
+    rho_at_y2: float,
+    occluded: bool,
+    colour_informative: bool,
+    contour_ok: bool,
+    cfg: ModelUpdateConfig,
+) -> UpdateDecision:
     """Gate of the update: never while occluded, in an uninformative (dark) visible frame, or
     without a contour position, and only when the match at y2 is good."""
     if not cfg.enabled:

@@ -43,7 +43,9 @@ def fit_linear_motion(history: np.ndarray, at_frame: float) -> LinearFit:
     """
     h = np.asarray(history, float)
     if h.ndim != 2 or h.shape[1] != 5 or h.shape[0] < 2:
-        raise ValueError(f"history must be (n >= 2, 5) rows of frame, cx, cy, w, h; got shape {h.shape}")
+        raise ValueError(
+            f"history must be (n >= 2, 5) rows of frame, cx, cy, w, h; got shape {h.shape}"
+        )
     t = h[:, 0]
     tc = t - t.mean()
     denom = float((tc**2).sum())
@@ -53,12 +55,19 @@ def fit_linear_motion(history: np.ndarray, at_frame: float) -> LinearFit:
         vx = float((tc * (h[:, 1] - h[:, 1].mean())).sum() / denom)
         vy = float((tc * (h[:, 2] - h[:, 2].mean())).sum() / denom)
     dt = at_frame - t.mean()
-    return LinearFit(float(h[:, 1].mean() + vx * dt), float(h[:, 2].mean() + vy * dt), vx, vy,
-                     float(np.median(h[:, 3])), float(np.median(h[:, 4])))
+    return LinearFit(
+        float(h[:, 1].mean() + vx * dt),
+        float(h[:, 2].mean() + vy * dt),
+        vx,
+        vy,
+        float(np.median(h[:, 3])),
+        float(np.median(h[:, 4])),
+    )
 
 
 def hold_rates(kf: kalman.GaussianState, kcfg: kalman.KalmanConfig) -> kalman.GaussianState:
-    """Zero the size rates and all accelerations: a hidden target coasts at constant velocity and size."""
+    """Zero the size rates and all accelerations: a hidden target coasts at constant velocity and
+    size."""
     x = kf.x.copy()
     x[6:8] = 0.0
     if kcfg.order == 3:
@@ -67,18 +76,25 @@ def hold_rates(kf: kalman.GaussianState, kcfg: kalman.KalmanConfig) -> kalman.Ga
 
 
 def stop(kf: kalman.GaussianState) -> kalman.GaussianState:
-    """Zero every rate (velocity, size rate, acceleration): the state of a target given up as lost."""
+    """Zero every rate (velocity, size rate, acceleration): the state of a target given up as
+    lost."""
     x = kf.x.copy()
     x[4:] = 0.0
     return kalman.GaussianState(x, kf.P)
 
 
-def coast_start(history: tuple[tuple[float, float, float, float, float], ...], prior: kalman.GaussianState,
-                frame: int, max_age_frames: int, drop_newest: int = 0) -> kalman.GaussianState | None:
+def coast_start(
+    history: tuple[tuple[float, float, float, float, float], ...],
+    prior: kalman.GaussianState,
+    frame: int,
+    max_age_frames: int,
+    drop_newest: int = 0,
+) -> kalman.GaussianState | None:
     """State to coast from when an occlusion starts: position, velocity and size from a straight
     line through the recent clean measurements ``(frame, cx, cy, w, h)``, leaving out the
-    ``drop_newest`` newest (an occluder often cuts the target before the cut is detected). None when
-    fewer than 4 remain, the newest is older than ``max_age_frames``, or ``max_age_frames`` is 0."""
+    ``drop_newest`` newest (an occluder often cuts the target before the cut is detected). None
+    when fewer than 4 remain, the newest is older than ``max_age_frames``, or ``max_age_frames`` is
+    0."""
     hist = np.asarray(history, float).reshape(-1, 5)
     if drop_newest and hist.shape[0] - drop_newest >= 4:
         hist = hist[:-drop_newest]

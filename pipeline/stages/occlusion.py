@@ -100,7 +100,10 @@ class OcclusionConfig(Section):
 
     def check(self) -> None:
         if not self.reacquire_distance <= self.distance_threshold:
-            raise ValueError(f"occlusion.reacquire_distance must be in (0, distance_threshold]; got {self.reacquire_distance!r}")
+            raise ValueError(
+                "occlusion.reacquire_distance must be in (0, distance_threshold]; got "
+                f"{self.reacquire_distance!r}"
+            )
 
 
 class Grade(enum.StrEnum):
@@ -109,10 +112,15 @@ class Grade(enum.StrEnum):
     SEVERE = "severe"
 
 
-def grade_occlusion(d: float, area_px2: float, min_area_px2: float | None, cfg: OcclusionConfig,
-                    predicted_area_px2: float | None = None) -> Grade:
-    """The paper's grading of one frame (``min_area_px2`` None: no reference yet, never severe by area;
-    ``predicted_area_px2`` None: no size-change test)."""
+def grade_occlusion(
+    d: float,
+    area_px2: float,
+    min_area_px2: float | None,
+    cfg: OcclusionConfig,
+    predicted_area_px2: float | None = None,
+) -> Grade:
+    """The paper's grading of one frame (``min_area_px2`` None: no reference yet, never severe by
+    area; ``predicted_area_px2`` None: no size-change test)."""
     grown = predicted_area_px2 is not None and area_px2 > cfg.max_area_growth * predicted_area_px2
     if d < cfg.distance_threshold and not (grown and cfg.size_change_occludes):
         return Grade.NONE

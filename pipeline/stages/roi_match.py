@@ -101,19 +101,34 @@ class Match:
     converged: bool
 
 
-def chip(frame: np.ndarray, center: tuple[float, float], size_px: tuple[int, int], scale: float) -> np.ndarray:
+def chip(
+    frame: np.ndarray, center: tuple[float, float], size_px: tuple[int, int], scale: float
+) -> np.ndarray:
     """The grey float32 chip of ``size_px`` (w, h) chip px centred on ``center`` (frame px),
     sampled at ``scale`` chip px per frame px (bilinear, replicated border)."""
     g = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
     w, h = size_px
-    # chip pixel (u, v) centre <- frame point center + ((u + 0.5 - w/2) / scale, ...) ; pixel centres at +0.5
-    M = np.array([[scale, 0, w / 2 - scale * center[0] - 0.5 + 0.5 * scale],
-                  [0, scale, h / 2 - scale * center[1] - 0.5 + 0.5 * scale]], np.float32)
-    return cv2.warpAffine(g, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(np.float32)
+    # chip pixel (u, v) centre <- frame point center + ((u + 0.5 - w/2) / scale, ...) ; pixel
+    # centres at +0.5
+    M = np.array(
+        [
+            [scale, 0, w / 2 - scale * center[0] - 0.5 + 0.5 * scale],
+            [0, scale, h / 2 - scale * center[1] - 0.5 + 0.5 * scale],
+        ],
+        np.float32,
+    )
+    return cv2.warpAffine(
+        g, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    ).astype(np.float32)
 
 
-def roi_chips(f_frame: np.ndarray, f_box: tuple[float, float, float, float], g_frame: np.ndarray,
-              g_box: tuple[float, float, float, float], cfg: RoiMatchConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def roi_chips(
+    f_frame: np.ndarray,
+    f_box: tuple[float, float, float, float],
+    g_frame: np.ndarray,
+    g_box: tuple[float, float, float, float],
+    cfg: RoiMatchConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Template chip of ``f_box`` in ``f_frame`` and the padded input chip around ``g_box`` in
     ``g_frame``, at one scale (the template's longer side ``chip_px``), and the warp that
     aligns their centres (the ECC/GAT start)."""
@@ -121,7 +136,7 @@ def roi_chips(f_frame: np.ndarray, f_box: tuple[float, float, float, float], g_f
     m = cfg.margin_fraction
     ww, hh = w * (1 + 2 * m), h * (1 + 2 * m)
     s = cfg.chip_px / max(ww, hh, 1e-6)
-    tw, th = max(int(round(ww * s)), 8), max(int(round(hh * s)), 8)
+    tw, th = max(round(ww * s), 8), max(round(hh * s), 8)
     f = chip(f_frame, (x + w / 2, y + h / 2), (tw, th), s)
     P = cfg.pad_px
     gx, gy, gw, gh = g_box
@@ -138,18 +153,30 @@ def ncc(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _warp_ok(W: np.ndarray, cfg: RoiMatchConfig) -> bool:
-    return bool(np.isfinite(W).all() and abs(np.linalg.det(W[:, :2].astype(np.float64)) - 1) <= cfg.max_scale_change)
+    return bool(
+        np.isfinite(W).all()
+        and abs(np.linalg.det(W[:, :2].astype(np.float64)) - 1) <= cfg.max_scale_change
+    )
 
 
-def ecc_match(f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarray | None = None) -> Match:
+def ecc_match(
+    f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarray | None = None
+) -> Match:
     """Maximize the correlation of ``f`` warped into ``g`` over affine warps (ECC)."""
     W = np.eye(2, 3, dtype=np.float32) if warp0 is None else np.asarray(warp0, np.float32).copy()
     if float(f.std()) < 1e-3 or float(g.std()) < 1e-3:
         return Match(float("nan"), W, False)
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg.ecc_iterations, cfg.ecc_epsilon)
     try:
-        cc, W = cv2.findTransformECC(f.astype(np.float32), g.astype(np.float32), W, cv2.MOTION_AFFINE, crit, None,
-                                     cfg.gauss_filter_px)
+        cc, W = cv2.findTransformECC(
+            f.astype(np.float32),
+            g.astype(np.float32),
+            W,
+            cv2.MOTION_AFFINE,
+            crit,
+            None,
+            cfg.gauss_filter_px,
+        )
     except cv2.error:  # -7: did not converge (the correlation was going down)
         start = np.eye(2, 3, dtype=np.float32) if warp0 is None else np.asarray(warp0, np.float32)
         return Match(_score(f, g, start), start, False)
@@ -162,12 +189,19 @@ def ecc_match(f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarr
 def _score(f: np.ndarray, g: np.ndarray, W: np.ndarray) -> float:
     """NCC of ``f`` and ``g`` brought into ``f``'s frame by ``W`` (over f's whole chip)."""
     h, w = f.shape
-    aligned = cv2.warpAffine(g, W, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+    aligned = cv2.warpAffine(
+        g,
+        W,
+        (w, h),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_REPLICATE,
+    )
     return ncc(f, aligned)
 
 
 def _points(img: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The ``n`` strongest-gradient pixels: positions relative to the centre, weights, directions."""
+    """The ``n`` strongest-gradient pixels: positions relative to the centre, weights,
+    directions."""
     sm = cv2.GaussianBlur(img, (5, 5), 1.0)
     gx = cv2.Sobel(sm, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(sm, cv2.CV_32F, 0, 1, ksize=3)
@@ -176,10 +210,16 @@ def _points(img: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray
     h, w = img.shape
     ys, xs = np.divmod(idx, w)
     pos = np.stack([xs - (w - 1) / 2, ys - (h - 1) / 2], axis=1).astype(np.float64)
-    return pos, mag[idx].astype(np.float64), np.arctan2(gy.ravel()[idx], gx.ravel()[idx]).astype(np.float64)
+    return (
+        pos,
+        mag[idx].astype(np.float64),
+        np.arctan2(gy.ravel()[idx], gx.ravel()[idx]).astype(np.float64),
+    )
 
 
-def gat_match(f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarray | None = None) -> Match:
+def gat_match(
+    f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarray | None = None
+) -> Match:
     """The paper's GAT correlation (docs/algorithms.md §4): anneal D, solve the weighted least
     squares ``A r1 + b ~ r2`` over point pairs, keep the iterate with the best NCC."""
     from scipy.spatial import cKDTree
@@ -211,14 +251,18 @@ def gat_match(f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarr
     for k in range(n):
         D = side * (0.25 * (0.04 / 0.25) ** (k / max(n - 1, 1)))
         q = p1 @ A.T + b
-        pairs = tree2.sparse_distance_matrix(cKDTree(q), max_distance=3 * D, output_type="coo_matrix")
+        pairs = tree2.sparse_distance_matrix(
+            cKDTree(q), max_distance=3 * D, output_type="coo_matrix"
+        )
         if pairs.nnz == 0:
             break
         j, i, d = pairs.row, pairs.col, pairs.data
         rot = math.atan2(A[1, 0], A[0, 0])
         K = np.maximum(0.0, np.cos(t1[i] + rot - t2[j]))
         wt = w1[i] * w2[j] * K * np.exp(-(d * d) / (D * D))
-        rs = np.bincount(i, weights=wt, minlength=len(p1))  # row-normalize: every f point votes once
+        rs = np.bincount(
+            i, weights=wt, minlength=len(p1)
+        )  # row-normalize: every f point votes once
         keep = rs[i] > 0
         wt = np.where(keep, wt / np.where(rs[i] > 0, rs[i], 1), 0.0) * w1[i]
         S = wt.sum()
@@ -242,13 +286,20 @@ def gat_match(f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarr
     return best
 
 
-def match_rois(f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarray | None = None) -> Match:
+def match_rois(
+    f: np.ndarray, g: np.ndarray, cfg: RoiMatchConfig, warp0: np.ndarray | None = None
+) -> Match:
     """:func:`ecc_match` or :func:`gat_match` per ``cfg.method``."""
     return (gat_match if cfg.method == "gat" else ecc_match)(f, g, cfg, warp0)
 
 
-def match_boxes(f_frame: np.ndarray, f_box: tuple[float, float, float, float], g_frame: np.ndarray,
-                g_box: tuple[float, float, float, float], cfg: RoiMatchConfig) -> Match:
+def match_boxes(
+    f_frame: np.ndarray,
+    f_box: tuple[float, float, float, float],
+    g_frame: np.ndarray,
+    g_box: tuple[float, float, float, float],
+    cfg: RoiMatchConfig,
+) -> Match:
     """Λ_I's correlation between a track's ROI (``f_box`` in the frame it was seen in) and a
     detection's ROI (``g_box`` in the current frame): :func:`roi_chips` then :func:`match_rois`."""
     f, g, w0 = roi_chips(f_frame, f_box, g_frame, g_box, cfg)
@@ -260,5 +311,9 @@ def image_likelihood(correlation: float, cfg: RoiMatchConfig) -> float:
     never below the floor; the floor also for no match or rho below ``min_correlation``."""
     if not np.isfinite(correlation) or correlation < cfg.min_correlation:
         return cfg.likelihood_floor
-    lam = math.exp(-cfg.sharpness * (1.0 - float(correlation))) if cfg.sharpness > 0 else float(correlation)
+    lam = (
+        math.exp(-cfg.sharpness * (1.0 - float(correlation)))
+        if cfg.sharpness > 0
+        else float(correlation)
+    )
     return max(lam, cfg.likelihood_floor)

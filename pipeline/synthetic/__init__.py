@@ -28,10 +28,21 @@ JPEG_QUALITY = 92
 # occlusion, HO heavy occlusion, LI low illumination, TC thermal crossover, FM fast motion,
 # SV scale variation, BC background clutter), written to scene.json for per-attribute reports.
 ATTRIBUTES: dict[str, tuple[str, ...]] = {
-    "dusk": ("NO", "LI"), "shadows": ("NO", "BC"), "approach": ("NO", "SV"), "lookalike": ("NO", "BC"),
-    "hot-distractor": ("NO", "BC"), "crossover": ("NO", "TC"), "occluder": ("HO",), "fast": ("NO", "FM"),
-    "crossing2": ("HO",), "crossing3": ("HO", "SV"), "meet-part": ("PO", "BC"), "group3": ("HO",),
-    "occluded-static": ("HO", "BC"), "occluded-moving": ("HO",), "pole-fast": ("HO", "FM"),
+    "dusk": ("NO", "LI"),
+    "shadows": ("NO", "BC"),
+    "approach": ("NO", "SV"),
+    "lookalike": ("NO", "BC"),
+    "hot-distractor": ("NO", "BC"),
+    "crossover": ("NO", "TC"),
+    "occluder": ("HO",),
+    "fast": ("NO", "FM"),
+    "crossing2": ("HO",),
+    "crossing3": ("HO", "SV"),
+    "meet-part": ("PO", "BC"),
+    "group3": ("HO",),
+    "occluded-static": ("HO", "BC"),
+    "occluded-moving": ("HO",),
+    "pole-fast": ("HO", "FM"),
 }
 
 
@@ -55,7 +66,9 @@ def _prepare(out_dir: str | Path, force: bool) -> Path:
         raise InputError(f"{out} exists and is not a folder")
     if out.exists() and any(out.iterdir()):
         if not force:
-            raise InputError(f"{out} already exists and is not empty; pass --force to overwrite it")
+            raise InputError(
+                f"{out} already exists and is not empty; pass --force to overwrite it"
+            )
         shutil.rmtree(out)
     (out / "visible").mkdir(parents=True, exist_ok=True)
     (out / "infrared").mkdir(parents=True, exist_ok=True)
@@ -70,9 +83,15 @@ DISTRACTOR_ID_BASE = 1000
 """Distractor rows of a random scene's ``gt.txt`` have ids ``DISTRACTOR_ID_BASE + actor index``."""
 
 
-def _write_truth(out: Path, ids: list[int], boxes: dict[str, dict[int, np.ndarray]], vis: dict[int, np.ndarray],
-                 distractors: dict[int, np.ndarray] | None = None) -> None:
-    """``visible.txt``/``infrared.txt``/``init.txt`` for one target, a MOT ``gt.txt`` (visible truth) for several.
+def _write_truth(
+    out: Path,
+    ids: list[int],
+    boxes: dict[str, dict[int, np.ndarray]],
+    vis: dict[int, np.ndarray],
+    distractors: dict[int, np.ndarray] | None = None,
+) -> None:
+    """``visible.txt``/``infrared.txt``/``init.txt`` for one target, a MOT ``gt.txt`` (visible
+    truth) for several.
 
     ``distractors`` (id -> (N, 4) visible boxes of moving objects that are not targets) become
     ``gt.txt`` rows with flag 0 and class 8 (MOTChallenge's "distractor"): not truth, and a
@@ -90,15 +109,22 @@ def _write_truth(out: Path, ids: list[int], boxes: dict[str, dict[int, np.ndarra
             r = boxes["visible"][tid][t]
             if np.isnan(r).any():
                 continue
-            rows.append(f"{t + 1},{tid},{r[0] + 1:.3f},{r[1] + 1:.3f},{r[2]:.3f},{r[3]:.3f},1,1,{vis[tid][t]:.3f}")
+            x, y = r[0] + 1, r[1] + 1
+            rows.append(
+                f"{t + 1},{tid},{x:.3f},{y:.3f},{r[2]:.3f},{r[3]:.3f},1,1,{vis[tid][t]:.3f}"
+            )
         for did, b in (distractors or {}).items():
             r = b[t]
             if not np.isnan(r).any():
-                rows.append(f"{t + 1},{did},{r[0] + 1:.3f},{r[1] + 1:.3f},{r[2]:.3f},{r[3]:.3f},0,8,1.000")
+                rows.append(
+                    f"{t + 1},{did},{r[0] + 1:.3f},{r[1] + 1:.3f},{r[2]:.3f},{r[3]:.3f},0,8,1.000"
+                )
     (out / "gt.txt").write_text("\n".join(rows) + "\n")
 
 
-def _visibility_meta(ids: list[int], boxes: dict[int, np.ndarray], vis: dict[int, np.ndarray]) -> dict[str, object]:
+def _visibility_meta(
+    ids: list[int], boxes: dict[int, np.ndarray], vis: dict[int, np.ndarray]
+) -> dict[str, object]:
     return {
         "occluded_frames": {str(i): _ranges(vis[i] < 0.5) for i in ids},
         "hidden_frames": {str(i): _ranges(vis[i] < 0.05) for i in ids},
@@ -107,7 +133,13 @@ def _visibility_meta(ids: list[int], boxes: dict[int, np.ndarray], vis: dict[int
     }
 
 
-def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = False, progress: bool | None = None) -> Path:
+def synthesize(
+    name: str,
+    out_dir: str | Path,
+    seed: int = 0,
+    force: bool = False,
+    progress: bool | None = None,
+) -> Path:
     """Render scenario ``name`` into ``out_dir`` (the sequence folder); returns the folder."""
     if name not in SCENARIOS:
         raise InputError(f"unknown scenario {name!r}; available: random, {', '.join(SCENARIOS)}")
@@ -125,8 +157,14 @@ def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = Fals
     with Progress(n, f"synth {name}", enabled=progress) as bar:
         for t in range(1, n + 1):
             v, ir, truth = renderer.render(t)
-            cv2.imwrite(str(out / "visible" / f"{t:05d}v.jpg"), v, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-            cv2.imwrite(str(out / "infrared" / f"{t:05d}i.jpg"), ir, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+            cv2.imwrite(
+                str(out / "visible" / f"{t:05d}v.jpg"), v, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY]
+            )
+            cv2.imwrite(
+                str(out / "infrared" / f"{t:05d}i.jpg"),
+                ir,
+                [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY],
+            )
             for tid, (box, visibility) in truth.items():
                 if box is not None:
                     boxes[tid][t - 1] = box
@@ -140,7 +178,9 @@ def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = Fals
         "width": scene.width,
         "height": scene.height,
         "frames": n,
-        "targets": [{"id": i, "kind": next(a.kind for a in scene.actors if a.target_id == i)} for i in ids],
+        "targets": [
+            {"id": i, "kind": next(a.kind for a in scene.actors if a.target_id == i)} for i in ids
+        ],
         "distractors": [a.name or a.kind for a in scene.actors if a.target_id == 0],
         **_visibility_meta(ids, boxes, vis),
         "attributes": list(ATTRIBUTES.get(name, ("NO",))),
@@ -152,13 +192,22 @@ def synthesize(name: str, out_dir: str | Path, seed: int = 0, force: bool = Fals
 
 IR16_GAIN = 200.0
 IR16_OFFSET = 3000.0
-"""16-bit IR counts = IR16_OFFSET + IR16_GAIN x grey level (before the 8-bit quantisation): a 14-bit-like range."""
+"""16-bit IR counts = IR16_OFFSET + IR16_GAIN x grey level (before the 8-bit quantisation): a
+14-bit-like range."""
 
 
-def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] | int | None = None,
-                      size: tuple[int, int] = (320, 240), frames: int = 200, ir16: bool = False,
-                      force: bool = False, progress: bool | None = None) -> Path:
-    """Draw the random scene of ``seed`` (:mod:`pipeline.synthetic.family`) and write it into ``out_dir``.
+def synthesize_random(
+    out_dir: str | Path,
+    seed: int,
+    targets: tuple[int, int] | int | None = None,
+    size: tuple[int, int] = (320, 240),
+    frames: int = 200,
+    ir16: bool = False,
+    force: bool = False,
+    progress: bool | None = None,
+) -> Path:
+    """Draw the random scene of ``seed`` (:mod:`pipeline.synthetic.family`) and write it into
+    ``out_dir``.
 
     The folder is in the RGBT234 layout: ``visible/*.jpg``, ``infrared/*.jpg`` (16-bit
     ``*.png`` with ``ir16``), per-channel truth ``visible.txt`` / ``infrared.txt`` (they
@@ -175,7 +224,12 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
     """
     from pipeline.progress import Progress
     from pipeline.synthetic.family import ATTRIBUTES as FRAME_ATTRIBUTES
-    from pipeline.synthetic.family import DISTRACTOR_ROLES, MIN_ATTRIBUTE_FRAMES, draw_scene, frame_attributes
+    from pipeline.synthetic.family import (
+        DISTRACTOR_ROLES,
+        MIN_ATTRIBUTE_FRAMES,
+        draw_scene,
+        frame_attributes,
+    )
 
     if not (isinstance(seed, int) and seed >= 0):
         raise InputError(f"--seed must be a non-negative integer; got {seed!r}")
@@ -199,12 +253,20 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
     with Progress(n, f"synth random {seed}", enabled=progress) as bar:
         for t in range(1, n + 1):
             f = renderer.render_frame(t)
-            cv2.imwrite(str(out / "visible" / f"{t:05d}v.jpg"), f.visible, [cv2.IMWRITE_JPEG_QUALITY, qv])
+            cv2.imwrite(
+                str(out / "visible" / f"{t:05d}v.jpg"), f.visible, [cv2.IMWRITE_JPEG_QUALITY, qv]
+            )
             if ir16:
-                raw = np.clip(IR16_OFFSET + IR16_GAIN * f.infrared_float, 0, 65535).astype(np.uint16)
+                raw = np.clip(IR16_OFFSET + IR16_GAIN * f.infrared_float, 0, 65535).astype(
+                    np.uint16
+                )
                 cv2.imwrite(str(out / "infrared" / f"{t:05d}i.png"), raw)
             else:
-                cv2.imwrite(str(out / "infrared" / f"{t:05d}i.jpg"), f.infrared, [cv2.IMWRITE_JPEG_QUALITY, qi])
+                cv2.imwrite(
+                    str(out / "infrared" / f"{t:05d}i.jpg"),
+                    f.infrared,
+                    [cv2.IMWRITE_JPEG_QUALITY, qi],
+                )
             for tid in ids:
                 for ch, tb in (("visible", f.truth_visible), ("infrared", f.truth_infrared)):
                     if tb.get(tid) is not None:
@@ -219,7 +281,11 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
                     flags[tid][a][t - 1] = v
             bar.update(1)
     _write_truth(out, ids, boxes, vis, others)
-    present = [a for a in FRAME_ATTRIBUTES if any(int(flags[i][a].sum()) >= MIN_ATTRIBUTE_FRAMES for i in ids)]
+    present = [
+        a
+        for a in FRAME_ATTRIBUTES
+        if any(int(flags[i][a].sum()) >= MIN_ATTRIBUTE_FRAMES for i in ids)
+    ]
     meta = {
         "scenario": "random",
         "family": "random",
@@ -229,11 +295,15 @@ def synthesize_random(out_dir: str | Path, seed: int, targets: tuple[int, int] |
         "height": scene.height,
         "frames": n,
         "ir16": ir16,
-        "targets": [{"id": i, "kind": next(a.kind for a in scene.actors if a.target_id == i)} for i in ids],
+        "targets": [
+            {"id": i, "kind": next(a.kind for a in scene.actors if a.target_id == i)} for i in ids
+        ],
         "distractors": [a.name or a.kind for a in scene.actors if a.target_id == 0],
         **_visibility_meta(ids, boxes["visible"], vis),
         "attributes": present,
-        "frame_attributes": {str(i): {a: _ranges(flags[i][a]) for a in FRAME_ATTRIBUTES} for i in ids},
+        "frame_attributes": {
+            str(i): {a: _ranges(flags[i][a]) for a in FRAME_ATTRIBUTES} for i in ids
+        },
         "params": drawn.params,
     }
     (out / "scene.json").write_text(json.dumps(json_ready(meta), indent=1) + "\n")

@@ -35,8 +35,14 @@ _MATERIALS: dict[str, tuple[tuple[float, float, float], float, float]] = {
     "pole": ((0.22, 0.23, 0.25), -4.0, -9.0),
     "fence": ((0.40, 0.36, 0.30), 2.0, -4.0),
 }
-FACADE_COLOURS = ((0.80, 0.74, 0.62), (0.66, 0.34, 0.26), (0.62, 0.63, 0.65), (0.90, 0.88, 0.84), (0.52, 0.46, 0.40),
-                  (0.75, 0.62, 0.42))
+FACADE_COLOURS = (
+    (0.80, 0.74, 0.62),
+    (0.66, 0.34, 0.26),
+    (0.62, 0.63, 0.65),
+    (0.90, 0.88, 0.84),
+    (0.52, 0.46, 0.40),
+    (0.75, 0.62, 0.42),
+)
 
 
 @dataclass
@@ -69,19 +75,23 @@ class _Painter:
         self.levels: dict[str, float] = {}
         self.colours: dict[str, np.ndarray] = {}
 
-    def material(self, name: str, rgb: tuple[float, float, float] | None = None) -> tuple[np.ndarray, float]:
+    def material(
+        self, name: str, rgb: tuple[float, float, float] | None = None
+    ) -> tuple[np.ndarray, float]:
         key = name if rgb is None else f"{name}{rgb}"
         if key not in self.colours:
             base, day, night = _MATERIALS.get(name, ((0.5, 0.5, 0.5), 0.0, 0.0))
             col = np.asarray(rgb if rgb is not None else base, np.float32)
-            self.colours[key] = np.clip(col + self.rng.uniform(-0.06, 0.06, 3).astype(np.float32), 0.02, 0.98)
+            self.colours[key] = np.clip(
+                col + self.rng.uniform(-0.06, 0.06, 3).astype(np.float32), 0.02, 0.98
+            )
             spread = 6.0 if name in ("asphalt", "pavement") else 4.0
             self.levels[key] = float((night if self.night else day) + self.rng.normal(0, spread))
         return self.colours[key], self.levels[key]
 
     def rect(self, name: str, x0: float, y0: float, x1: float, y1: float, rgb=None) -> None:
-        xa, ya = max(int(round(x0)), 0), max(int(round(y0)), 0)
-        xb, yb = min(int(round(x1)), self.w), min(int(round(y1)), self.h)
+        xa, ya = max(round(x0), 0), max(round(y0), 0)
+        xb, yb = min(round(x1), self.w), min(round(y1), self.h)
         if xb <= xa or yb <= ya:
             return
         col, lev = self.material(name, rgb)
@@ -96,8 +106,13 @@ class _Painter:
         self.ir[:] = self.ir * (1 - m) + (self.ambient + lev) * m
 
 
-def street_background(rng: np.random.Generator, w: int, h: int, night: bool | None = None,
-                      ambient: float | None = None) -> Background:
+def street_background(
+    rng: np.random.Generator,
+    w: int,
+    h: int,
+    night: bool | None = None,
+    ambient: float | None = None,
+) -> Background:
     """Draw a street scene of ``w`` x ``h`` px (see the module doc).
 
     Parameters
@@ -136,8 +151,14 @@ def street_background(rng: np.random.Generator, w: int, h: int, night: bool | No
             colour = FACADE_COLOURS[int(rng.integers(len(FACADE_COLOURS)))]
             p.rect("facade", x, top, x + bw, horizon, colour)
             # a darker side edge so the building reads as a volume
-            p.rect("facade", x + bw - max(2.0, 0.04 * bw), top, x + bw, horizon,
-                   tuple(c * 0.75 for c in colour))
+            p.rect(
+                "facade",
+                x + bw - max(2.0, 0.04 * bw),
+                top,
+                x + bw,
+                horizon,
+                tuple(c * 0.75 for c in colour),
+            )
             ww = max(3.0, bw * rng.uniform(0.08, 0.16))
             wh = max(3.0, (horizon - top) * rng.uniform(0.10, 0.22))
             gapx, gapy = ww * rng.uniform(0.6, 1.4), wh * rng.uniform(0.5, 1.2)
@@ -146,10 +167,18 @@ def street_background(rng: np.random.Generator, w: int, h: int, night: bool | No
             while yy + wh < horizon - 2:
                 xx = x + gapx * 0.7
                 while xx + ww < x + bw - 2:
-                    p.rect("window-lit" if rng.random() < lit_p else "window", xx, yy, xx + ww, yy + wh)
+                    p.rect(
+                        "window-lit" if rng.random() < lit_p else "window",
+                        xx,
+                        yy,
+                        xx + ww,
+                        yy + wh,
+                    )
                     xx += ww + gapx
                 yy += wh + gapy
-            structures.append({"kind": "building", "x": round(x, 1), "w": round(bw, 1), "top": round(top, 1)})
+            structures.append(
+                {"kind": "building", "x": round(x, 1), "w": round(bw, 1), "top": round(top, 1)}
+            )
         elif kind == "tree":
             m = np.zeros((h, w), np.float32)
             cx = x + bw / 2
@@ -157,8 +186,17 @@ def street_background(rng: np.random.Generator, w: int, h: int, night: bool | No
             p.rect("trunk", cx - trunk_w / 2, horizon * 0.55, cx + trunk_w / 2, horizon + 2)
             for _ in range(int(rng.integers(3, 7))):
                 ex, ey = cx + rng.normal(0, bw * 0.18), horizon * rng.uniform(0.15, 0.6)
-                cv2.ellipse(m, (int(ex), int(ey)), (int(bw * rng.uniform(0.15, 0.3)), int(horizon * rng.uniform(0.12, 0.25))),
-                            0, 0, 360, 1.0, -1, cv2.LINE_AA)
+                cv2.ellipse(
+                    m,
+                    (int(ex), int(ey)),
+                    (int(bw * rng.uniform(0.15, 0.3)), int(horizon * rng.uniform(0.12, 0.25))),
+                    0,
+                    0,
+                    360,
+                    1.0,
+                    -1,
+                    cv2.LINE_AA,
+                )
             m = np.clip(m, 0, 1) * np.clip(1.0 + 0.25 * _smooth_noise(rng, h, w, 2.0), 0.5, 1.2)
             p.mask("foliage", np.clip(m, 0, 1))
             structures.append({"kind": "tree", "x": round(cx, 1), "w": round(bw, 1)})
@@ -169,13 +207,24 @@ def street_background(rng: np.random.Generator, w: int, h: int, night: bool | No
     y = horizon
     order: list[str] = []
     if rng.random() < 0.75:
-        order = ["pavement", "kerb", "asphalt", "kerb", str(rng.choice(["pavement", "grass", "water"]))]
+        order = [
+            "pavement",
+            "kerb",
+            "asphalt",
+            "kerb",
+            str(rng.choice(["pavement", "grass", "water"])),
+        ]
     else:
-        order = [str(rng.choice(["pavement", "grass"])), str(rng.choice(["grass", "water", "pavement"]))]
-    weights = np.array([{"kerb": 0.04, "asphalt": 0.5}.get(o, 0.3) for o in order]) * rng.uniform(0.7, 1.3, len(order))
+        order = [
+            str(rng.choice(["pavement", "grass"])),
+            str(rng.choice(["grass", "water", "pavement"])),
+        ]
+    weights = np.array([{"kerb": 0.04, "asphalt": 0.5}.get(o, 0.3) for o in order]) * rng.uniform(
+        0.7, 1.3, len(order)
+    )
     heights = weights / weights.sum() * (h - horizon)
     for name, bh in zip(order, heights, strict=True):
-        y1 = h if name == order[-1] else int(round(y + max(bh, 2)))
+        y1 = h if name == order[-1] else round(y + max(bh, 2))
         p.rect(name, 0, y, w, y1)
         bands.append((name, y, y1))
         if name == "asphalt" and y1 - y > 12:
@@ -208,28 +257,65 @@ def street_background(rng: np.random.Generator, w: int, h: int, night: bool | No
         step = rng.uniform(4, 9)
         for xx in np.arange(fx0, fx1, step):
             p.rect("fence", xx, fy0, xx + 1.5, fy1)
-        structures.append({"kind": "fence", "x0": round(float(fx0), 1), "x1": round(float(fx1), 1)})
+        structures.append(
+            {"kind": "fence", "x0": round(float(fx0), 1), "x1": round(float(fx1), 1)}
+        )
     if rng.random() < 0.4:  # bushes on the ground
         m = np.zeros((h, w), np.float32)
         for _ in range(int(rng.integers(1, 4))):
             bx, by = rng.uniform(0, w), rng.uniform(horizon, h)
-            cv2.ellipse(m, (int(bx), int(by)), (int(rng.uniform(0.04, 0.1) * w), int(rng.uniform(0.03, 0.08) * h)),
-                        0, 0, 360, 1.0, -1, cv2.LINE_AA)
-        p.mask("foliage", np.clip(m * np.clip(1 + 0.3 * _smooth_noise(rng, h, w, 1.5), 0.4, 1.3), 0, 1))
+            cv2.ellipse(
+                m,
+                (int(bx), int(by)),
+                (int(rng.uniform(0.04, 0.1) * w), int(rng.uniform(0.03, 0.08) * h)),
+                0,
+                0,
+                360,
+                1.0,
+                -1,
+                cv2.LINE_AA,
+            )
+        p.mask(
+            "foliage",
+            np.clip(m * np.clip(1 + 0.3 * _smooth_noise(rng, h, w, 1.5), 0.4, 1.3), 0, 1),
+        )
         structures.append({"kind": "bushes"})
 
     # textures: fine grain and large-scale shading, independent per channel
-    tex = _smooth_noise(rng, h, w, 1.0)[..., None] * 0.03 + _smooth_noise(rng, h, w, 10.0)[..., None] * 0.05
+    tex = (
+        _smooth_noise(rng, h, w, 1.0)[..., None] * 0.03
+        + _smooth_noise(rng, h, w, 10.0)[..., None] * 0.05
+    )
     vis = np.clip(p.vis * (1.0 + tex), 0, 1)
-    ir = p.ir + _smooth_noise(rng, h, w, 6.0) * rng.uniform(2.0, 6.0) + _smooth_noise(rng, h, w, 1.0) * 1.0
-    if not night and rng.random() < 0.5:  # sun patches on the ground: warmer in IR, brighter in visible
+    ir = (
+        p.ir
+        + _smooth_noise(rng, h, w, 6.0) * rng.uniform(2.0, 6.0)
+        + _smooth_noise(rng, h, w, 1.0) * 1.0
+    )
+    # sun patches on the ground: warmer in IR, brighter in visible
+    if not night and rng.random() < 0.5:
         m = np.zeros((h, w), np.float32)
         for _ in range(int(rng.integers(1, 4))):
-            cv2.ellipse(m, (int(rng.uniform(0, w)), int(rng.uniform(horizon, h))),
-                        (int(rng.uniform(0.1, 0.3) * w), int(rng.uniform(0.05, 0.15) * h)), 0, 0, 360, 1.0, -1)
+            cv2.ellipse(
+                m,
+                (int(rng.uniform(0, w)), int(rng.uniform(horizon, h))),
+                (int(rng.uniform(0.1, 0.3) * w), int(rng.uniform(0.05, 0.15) * h)),
+                0,
+                0,
+                360,
+                1.0,
+                -1,
+            )
         m = cv2.GaussianBlur(m, (0, 0), 6.0)
         ir += m * rng.uniform(4, 12)
         vis = np.clip(vis * (1 + 0.12 * m[..., None]), 0, 1)
-    params = {"night": night, "ir_ambient": round(ambient, 2), "horizon_px": horizon, "sky_px": sky_to,
-              "ground_bands": [list(b) for b in bands]}
-    return Background(vis.astype(np.float32), ir.astype(np.float32), horizon, bands, structures, params)
+    params = {
+        "night": night,
+        "ir_ambient": round(ambient, 2),
+        "horizon_px": horizon,
+        "sky_px": sky_to,
+        "ground_bands": [list(b) for b in bands],
+    }
+    return Background(
+        vis.astype(np.float32), ir.astype(np.float32), horizon, bands, structures, params
+    )

@@ -54,7 +54,9 @@ class Actor:
     height_px: float = 0.0  # pillar height
     walk_phase_per_px: float = 0.0  # walk cycles per px moved (0: derived from size)
     name: str = ""
-    facing_auto: bool = False  # turn the sprite to face the way it moves (cars, cyclists that turn back)
+    facing_auto: bool = (
+        False  # turn the sprite to face the way it moves (cars, cyclists that turn back)
+    )
 
     def depth_at(self, t: float) -> float:
         return self.depth(t) if callable(self.depth) else float(self.depth)
@@ -74,7 +76,8 @@ class Shadow:
 
 @dataclass(frozen=True)
 class MaskShadow:
-    """A visible-channel shadow of any drawn shape: a soft mask (0..1) whose top-left corner follows ``path``.
+    """A visible-channel shadow of any drawn shape: a soft mask (0..1) whose top-left corner
+    follows ``path``.
 
     ``factor`` is the brightness left under the mask's core (0 black, 1 no shadow);
     ``ir_cooling`` grey levels are taken off the infrared where a static shadow has
@@ -200,7 +203,10 @@ def background(scene: Scene, rng: np.random.Generator) -> tuple[np.ndarray, np.n
         vis[y0 : y0 + 1, :, :] *= 0.85
     for x0 in range(0, w, 2 * step):
         vis[horizon:grass, x0 : x0 + 1] *= 0.88
-    tex = _smooth_noise(rng, h, w, 1.2)[..., None] * 0.035 + _smooth_noise(rng, h, w, 8.0)[..., None] * 0.05
+    tex = (
+        _smooth_noise(rng, h, w, 1.2)[..., None] * 0.035
+        + _smooth_noise(rng, h, w, 8.0)[..., None] * 0.05
+    )
     vis = np.clip(vis * (1.0 + tex), 0, 1)
     ir += _smooth_noise(rng, h, w, 6.0) * 4.0 + _smooth_noise(rng, h, w, 1.0) * 1.0
     return vis, ir
@@ -219,11 +225,19 @@ class Renderer:
             self.bg_vis, self.bg_ir = background(scene, self.rng)
         for ms in scene.mask_shadows:  # static shadows have cooled the ground under them
             if ms.ir_cooling:
-                self._paste(self.bg_ir, ms.mask, ms.path(1.0), lambda roi, m, c=ms.ir_cooling: roi - c * m)
+                self._paste(
+                    self.bg_ir, ms.mask, ms.path(1.0), lambda roi, m, c=ms.ir_cooling: roi - c * m
+                )
         self._sprites: list[dict[int, list[Sprite]]] = []
         self._layer_cache: dict[tuple[int, int, int], np.ndarray] = {}
-        self._vis_bank = [self.rng.standard_normal((scene.height, scene.width, 3), dtype=np.float32) for _ in range(6)]
-        self._ir_bank = [self.rng.standard_normal((scene.height, scene.width), dtype=np.float32) for _ in range(6)]
+        self._vis_bank = [
+            self.rng.standard_normal((scene.height, scene.width, 3), dtype=np.float32)
+            for _ in range(6)
+        ]
+        self._ir_bank = [
+            self.rng.standard_normal((scene.height, scene.width), dtype=np.float32)
+            for _ in range(6)
+        ]
         # reference box centre x, y and height (canvas px), per facing
         self._ref: list[dict[int, tuple[float, float, float]]] = []
         self._dist: list[float] = [0.0] * len(scene.actors)
@@ -237,7 +251,9 @@ class Renderer:
             refs = {}
             for f, sprites in sets.items():
                 b = sprites[0].box
-                ref_dim = b[3] - b[1] if a.kind in ("person", "cyclist") else b[2] - b[0]  # height of people
+                ref_dim = (
+                    b[3] - b[1] if a.kind in ("person", "cyclist") else b[2] - b[0]
+                )  # height of people
                 refs[f] = ((b[0] + b[2]) / 2, (b[1] + b[3]) / 2, ref_dim)
             self._ref.append(refs)
         sen = scene.sensor
@@ -245,7 +261,8 @@ class Renderer:
         if sen.vignetting > 0:
             yy, xx = np.mgrid[0 : scene.height, 0 : scene.width].astype(np.float32)
             r2 = ((xx + 0.5 - scene.width / 2) ** 2 + (yy + 0.5 - scene.height / 2) ** 2) / (
-                (scene.width / 2) ** 2 + (scene.height / 2) ** 2)
+                (scene.width / 2) ** 2 + (scene.height / 2) ** 2
+            )
             self._vignette = (1.0 - np.float32(sen.vignetting) * r2)[..., None].astype(np.float32)
 
     def _make_sprites(self, a: Actor, srng: np.random.Generator, facing: int) -> list[Sprite]:
@@ -271,9 +288,10 @@ class Renderer:
 
     @staticmethod
     def _paste(img: np.ndarray, mask: np.ndarray, pos: tuple[float, float], op) -> None:
-        """``img[region] = op(img[region], mask[part])`` for ``mask`` placed with its top-left corner at ``pos``."""
+        """``img[region] = op(img[region], mask[part])`` for ``mask`` placed with its top-left
+        corner at ``pos``."""
         h, w = img.shape[:2]
-        ox, oy = int(round(pos[0])), int(round(pos[1]))
+        ox, oy = round(pos[0]), round(pos[1])
         x0, y0 = max(ox, 0), max(oy, 0)
         x1, y1 = min(ox + mask.shape[1], w), min(oy + mask.shape[0], h)
         if x1 <= x0 or y1 <= y0:
@@ -281,7 +299,9 @@ class Renderer:
         m = mask[y0 - oy : y1 - oy, x0 - ox : x1 - ox]
         img[y0:y1, x0:x1] = op(img[y0:y1, x0:x1], m)
 
-    def _placement(self, i: int, t: float) -> tuple[Sprite, np.ndarray, tuple[float, float, float, float]]:
+    def _placement(
+        self, i: int, t: float
+    ) -> tuple[Sprite, np.ndarray, tuple[float, float, float, float]]:
         a = self.scene.actors[i]
         cx, cy, s = a.path(t)
         if a.facing_auto:
@@ -307,32 +327,47 @@ class Renderer:
         return sprite, M, box
 
     def _layers(self, i: int, sprite: Sprite, k: float) -> np.ndarray:
-        """The sprite's 5 layers (RGB, alpha, heat), pre-blurred against aliasing for scale ``k`` (cached)."""
+        """The sprite's 5 layers (RGB, alpha, heat), pre-blurred against aliasing for scale ``k``
+        (cached)."""
         sigma = 0.45 / k if k < 1 else 0.0
         key = (i, id(sprite), round(sigma * 10))
         layers = self._layer_cache.get(key)
         if layers is None:
-            layers = np.dstack([sprite.rgb, sprite.alpha[..., None], sprite.heat[..., None]]).astype(np.float32)
+            layers = np.dstack(
+                [sprite.rgb, sprite.alpha[..., None], sprite.heat[..., None]]
+            ).astype(np.float32)
             if sigma > 0.3:
                 layers = cv2.GaussianBlur(layers, (0, 0), round(sigma * 10) / 10)
             self._layer_cache[key] = layers
         return layers
 
     def _noise(self, bank: list[np.ndarray]) -> np.ndarray:
-        """Sensor noise for one frame: a bank frame circularly shifted by a random offset (independent enough, 10x cheaper)."""
+        """Sensor noise for one frame: a bank frame circularly shifted by a random offset
+        (independent enough, 10x cheaper)."""
         a = bank[int(self.rng.integers(len(bank)))]
         dy, dx = int(self.rng.integers(a.shape[0])), int(self.rng.integers(a.shape[1]))
         sign = np.float32(1 if self.rng.integers(2) else -1)
         return np.roll(a, (dy, dx), axis=(0, 1)) * sign
 
-    def render(self, t: int) -> tuple[np.ndarray, np.ndarray, dict[int, tuple[tuple[float, float, float, float] | None, float]]]:
-        """Frame ``t`` (1-based): visible BGR uint8, IR uint8, and per target ``(box or None, visibility)``."""
+    def render(
+        self, t: int
+    ) -> tuple[
+        np.ndarray, np.ndarray, dict[int, tuple[tuple[float, float, float, float] | None, float]]
+    ]:
+        """Frame ``t`` (1-based): visible BGR uint8, IR uint8, and per target ``(box or None,
+        visibility)``."""
         f = self.render_frame(t)
-        return f.visible, f.infrared, {tid: (box, f.visibility[tid]) for tid, box in f.truth_visible.items()}
+        return (
+            f.visible,
+            f.infrared,
+            {tid: (box, f.visibility[tid]) for tid, box in f.truth_visible.items()},
+        )
 
-    def _truth_box(self, box: tuple[float, float, float, float], dx: float, dy: float
-                   ) -> tuple[tuple[float, float, float, float] | None, float]:
-        """The truth box displaced by (dx, dy) and the share of it inside the frame (clipped if the scene says)."""
+    def _truth_box(
+        self, box: tuple[float, float, float, float], dx: float, dy: float
+    ) -> tuple[tuple[float, float, float, float] | None, float]:
+        """The truth box displaced by (dx, dy) and the share of it inside the frame (clipped if the
+        scene says)."""
         sc = self.scene
         w, h = sc.width, sc.height
         x, y, bw, bh = box[0] + dx, box[1] + dy, box[2], box[3]
@@ -348,13 +383,19 @@ class Renderer:
         return (ix0, iy0, ix1 - ix0, iy1 - iy0), frac
 
     @staticmethod
-    def _shift(img: np.ndarray, dx: float, dy: float, border: int = cv2.BORDER_REFLECT_101) -> np.ndarray:
+    def _shift(
+        img: np.ndarray, dx: float, dy: float, border: int = cv2.BORDER_REFLECT_101
+    ) -> np.ndarray:
         M = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], np.float64)
-        return cv2.warpAffine(img, M, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR, borderMode=border)
+        return cv2.warpAffine(
+            img, M, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR, borderMode=border
+        )
 
-    def _mask_box(self, crop: tuple[int, int, np.ndarray], dx: float, dy: float
-                  ) -> tuple[float, float, float, float] | None:
-        """Pixel box of a target's alpha >= 0.5 after moving it by (dx, dy), inside the frame (None if empty)."""
+    def _mask_box(
+        self, crop: tuple[int, int, np.ndarray], dx: float, dy: float
+    ) -> tuple[float, float, float, float] | None:
+        """Pixel box of a target's alpha >= 0.5 after moving it by (dx, dy), inside the frame (None
+        if empty)."""
         x0, y0, alpha = crop
         pad = int(np.ceil(max(abs(dx), abs(dy)))) + 2
         a = cv2.copyMakeBorder(alpha, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
@@ -371,7 +412,8 @@ class Renderer:
         return (float(bx0), float(by0), float(bx1 - bx0), float(by1 - by0))
 
     def render_frame(self, t: int, masks: bool = False) -> RenderedFrame:
-        """Frame ``t`` (1-based) with its truth per channel; ``masks`` adds each target's amodal alpha."""
+        """Frame ``t`` (1-based) with its truth per channel; ``masks`` adds each target's amodal
+        alpha."""
         sc = self.scene
         sen = sc.sensor
         h, w = sc.height, sc.width
@@ -381,7 +423,9 @@ class Renderer:
         own_area: dict[int, int] = {}
         boxes: dict[int, tuple[float, float, float, float]] = {}
         alphas: dict[int, np.ndarray] = {}
-        crops: dict[int, tuple[int, int, np.ndarray]] = {}  # target id -> (x0, y0, alpha of its crop)
+        crops: dict[
+            int, tuple[int, int, np.ndarray]
+        ] = {}  # target id -> (x0, y0, alpha of its crop)
         order = sorted(range(len(sc.actors)), key=lambda i: sc.actors[i].depth_at(t))
         placements = {i: self._placement(i, float(t)) for i in range(len(sc.actors))}
         for i in order:
@@ -390,27 +434,37 @@ class Renderer:
             if a.target_id > 0:
                 boxes[a.target_id] = box
             k = M[0, 0]
-            x0 = max(int(math.floor(M[0, 2])) - 2, 0)
-            y0 = max(int(math.floor(M[1, 2])) - 2, 0)
-            x1 = min(int(math.ceil(M[0, 2] + k * sprite.alpha.shape[1])) + 2, w)
-            y1 = min(int(math.ceil(M[1, 2] + k * sprite.alpha.shape[0])) + 2, h)
+            x0 = max(math.floor(M[0, 2]) - 2, 0)
+            y0 = max(math.floor(M[1, 2]) - 2, 0)
+            x1 = min(math.ceil(M[0, 2] + k * sprite.alpha.shape[1]) + 2, w)
+            y1 = min(math.ceil(M[1, 2] + k * sprite.alpha.shape[0]) + 2, h)
             if x1 <= x0 or y1 <= y0:
                 continue
             Mr = M.copy()
             Mr[0, 2] -= x0
             Mr[1, 2] -= y0
             layers = self._layers(i, sprite, k)
-            warped = cv2.warpAffine(layers, Mr, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            warped = cv2.warpAffine(
+                layers,
+                Mr,
+                (x1 - x0, y1 - y0),
+                flags=cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=0,
+            )
             rgb, alpha, heat = warped[..., :3], warped[..., 3], warped[..., 4]
             a3 = alpha[..., None]
             with np.errstate(invalid="ignore", divide="ignore"):
-                color = np.where(a3 > 1e-4, rgb / np.maximum(a3, 1e-4), 0)  # un-premultiply the blur
+                color = np.where(
+                    a3 > 1e-4, rgb / np.maximum(a3, 1e-4), 0
+                )  # un-premultiply the blur
                 hv = np.where(alpha > 1e-4, heat / np.maximum(alpha, 1e-4), 0)
             roi = vis[y0:y1, x0:x1]
             roi[:] = roi * (1 - a3) + np.clip(color, 0, 1) * a3
             a_ir = cv2.GaussianBlur(alpha, (0, 0), 1.0)
-            temp = sc.ir_ambient + a.ir_contrast * a.ir_factor_at(t) * cv2.GaussianBlur(hv * alpha, (0, 0), 1.0) / np.maximum(a_ir, 1e-4)
+            temp = sc.ir_ambient + a.ir_contrast * a.ir_factor_at(t) * cv2.GaussianBlur(
+                hv * alpha, (0, 0), 1.0
+            ) / np.maximum(a_ir, 1e-4)
             iroi = ir[y0:y1, x0:x1]
             iroi[:] = iroi * (1 - a_ir) + temp * a_ir
             solid = alpha > 0.5
@@ -432,21 +486,39 @@ class Renderer:
             if sx1 <= sx0 or sy1 <= sy0:
                 continue
             m = np.zeros((sy1 - sy0, sx1 - sx0), np.float32)
-            cv2.ellipse(m, (round((cx - sx0) * 4), round((cy - sy0) * 4)), (max(round(rx * 4), 1), max(round(ry * 4), 1)),
-                        0, 0, 360, 1.0, -1, cv2.LINE_AA, shift=2)
+            cv2.ellipse(
+                m,
+                (round((cx - sx0) * 4), round((cy - sy0) * 4)),
+                (max(round(rx * 4), 1), max(round(ry * 4), 1)),
+                0,
+                0,
+                360,
+                1.0,
+                -1,
+                cv2.LINE_AA,
+                shift=2,
+            )
             m = cv2.GaussianBlur(m, (0, 0), shd.softness_px, borderType=cv2.BORDER_REPLICATE)
             vis[sy0:sy1, sx0:sx1] *= (1.0 - (1.0 - shd.factor) * m)[..., None]
         shade = None
         if sc.mask_shadows:
             shade = np.ones((h, w), np.float32)
             for ms in sc.mask_shadows:
-                self._paste(shade, ms.mask, ms.path(float(t)),
-                            lambda roi, m, f=ms.factor: roi * (1.0 - np.float32(1.0 - f) * m))
+                self._paste(
+                    shade,
+                    ms.mask,
+                    ms.path(float(t)),
+                    lambda roi, m, f=ms.factor: roi * (1.0 - np.float32(1.0 - f) * m),
+                )
             vis *= shade[..., None]
         gain = sc.illumination(float(t)) if sc.illumination else 1.0
         if self._vignette is not None:
             vis *= self._vignette
-        jx, jy = (float(sen.jitter_px[t - 1, 0]), float(sen.jitter_px[t - 1, 1])) if sen.jitter_px is not None else (0.0, 0.0)
+        jx, jy = (
+            (float(sen.jitter_px[t - 1, 0]), float(sen.jitter_px[t - 1, 1]))
+            if sen.jitter_px is not None
+            else (0.0, 0.0)
+        )
         ix, iy = jx + sen.ir_shift_px[0], jy + sen.ir_shift_px[1]
         if jx or jy:
             vis = self._shift(vis, jx, jy)
@@ -479,7 +551,20 @@ class Renderer:
             area = own_area.get(tid, 0)
             visible = int((owner == tid).sum())
             visibility[tid] = (visible / area) if area else 0.0
-        others = {i: self._truth_box(placements[i][2], jx, jy)[0]
-                  for i, a in enumerate(sc.actors) if a.target_id <= 0}
-        return RenderedFrame(vis_u8, ir_u8, ir_float, truth_vis, truth_ir, visibility, in_frame, shade,
-                             alphas if masks else None, others)
+        others = {
+            i: self._truth_box(placements[i][2], jx, jy)[0]
+            for i, a in enumerate(sc.actors)
+            if a.target_id <= 0
+        }
+        return RenderedFrame(
+            vis_u8,
+            ir_u8,
+            ir_float,
+            truth_vis,
+            truth_ir,
+            visibility,
+            in_frame,
+            shade,
+            alphas if masks else None,
+            others,
+        )

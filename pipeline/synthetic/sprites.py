@@ -64,10 +64,20 @@ class _Canvas:
         m = self._mask(lambda img: cv2.fillPoly(img, [_pts(points)], 255, cv2.LINE_AA, shift=2))
         self._paint(m, color, heat, texture)
 
-    def ellipse(self, center, axes, color, heat: float, angle: float = 0.0, texture: np.ndarray | None = None) -> None:
+    def ellipse(
+        self,
+        center,
+        axes,
+        color,
+        heat: float,
+        angle: float = 0.0,
+        texture: np.ndarray | None = None,
+    ) -> None:
         c = (round(center[0] * SS), round(center[1] * SS))
         a = (max(round(axes[0] * SS), 1), max(round(axes[1] * SS), 1))
-        m = self._mask(lambda img: cv2.ellipse(img, c, a, angle, 0, 360, 255, -1, cv2.LINE_AA, shift=2))
+        m = self._mask(
+            lambda img: cv2.ellipse(img, c, a, angle, 0, 360, 255, -1, cv2.LINE_AA, shift=2)
+        )
         self._paint(m, color, heat, texture)
 
     def ring(self, center, radius: float, width: float, color, heat: float) -> None:
@@ -113,7 +123,7 @@ def person(height_px: float, palette: Palette, phase: float, rng: np.random.Gene
     """
     H = height_px
     W = 0.62 * H
-    cw, ch = int(math.ceil(W)) + 1, int(math.ceil(H)) + 2
+    cw, ch = math.ceil(W) + 1, math.ceil(H) + 2
     cv = _Canvas(cw, ch)
     cx = W / 2
     tex = _texture(ch, cw, palette.pattern, 0.035 * H, rng)
@@ -126,12 +136,28 @@ def person(height_px: float, palette: Palette, phase: float, rng: np.random.Gene
         dx, dy = math.sin(ang), math.cos(ang)
         px, py = -dy * leg_w / 2, dx * leg_w / 2
         foot = (hx + dx * leg_len, hip_y + dy * leg_len)
-        cv.poly([(hx + px, hip_y + py), (hx - px, hip_y - py), (foot[0] - px, foot[1] - py), (foot[0] + px, foot[1] + py)],
-                palette.bottom, 0.70, plain)
+        cv.poly(
+            [
+                (hx + px, hip_y + py),
+                (hx - px, hip_y - py),
+                (foot[0] - px, foot[1] - py),
+                (foot[0] + px, foot[1] + py),
+            ],
+            palette.bottom,
+            0.70,
+            plain,
+        )
         shoe_dir = 1 if side > 0 else -1
-        cv.poly([(foot[0] - leg_w * 0.55, foot[1] - 0.02 * H), (foot[0] + leg_w * 0.55 + shoe_dir * 0.02 * H, foot[1] - 0.02 * H),
-                 (foot[0] + leg_w * 0.55 + shoe_dir * 0.02 * H, foot[1] + 0.035 * H), (foot[0] - leg_w * 0.55, foot[1] + 0.035 * H)],
-                palette.shoes, 0.40)
+        cv.poly(
+            [
+                (foot[0] - leg_w * 0.55, foot[1] - 0.02 * H),
+                (foot[0] + leg_w * 0.55 + shoe_dir * 0.02 * H, foot[1] - 0.02 * H),
+                (foot[0] + leg_w * 0.55 + shoe_dir * 0.02 * H, foot[1] + 0.035 * H),
+                (foot[0] - leg_w * 0.55, foot[1] + 0.035 * H),
+            ],
+            palette.shoes,
+            0.40,
+        )
     # arms swing opposite to the legs
     for side, sgn in ((-1, -1), (1, 1)):
         ang = math.radians(14) * swing * sgn
@@ -140,41 +166,92 @@ def person(height_px: float, palette: Palette, phase: float, rng: np.random.Gene
         dx, dy = math.sin(ang), math.cos(ang)
         px, py = -dy * aw / 2, dx * aw / 2
         hand = (sx + dx * alen, sy + dy * alen)
-        cv.poly([(sx + px, sy + py), (sx - px, sy - py), (hand[0] - px, hand[1] - py), (hand[0] + px, hand[1] + py)],
-                palette.top, 0.80, tex)
+        cv.poly(
+            [
+                (sx + px, sy + py),
+                (sx - px, sy - py),
+                (hand[0] - px, hand[1] - py),
+                (hand[0] + px, hand[1] + py),
+            ],
+            palette.top,
+            0.80,
+            tex,
+        )
         cv.ellipse(hand, (aw * 0.55, aw * 0.6), palette.skin, 0.9)
     # torso with a slightly narrower waist
-    cv.poly([(cx - 0.15 * H, 0.17 * H), (cx + 0.15 * H, 0.17 * H), (cx + 0.135 * H, 0.53 * H), (cx - 0.135 * H, 0.53 * H)],
-            palette.top, 0.75, tex)
+    cv.poly(
+        [
+            (cx - 0.15 * H, 0.17 * H),
+            (cx + 0.15 * H, 0.17 * H),
+            (cx + 0.135 * H, 0.53 * H),
+            (cx - 0.135 * H, 0.53 * H),
+        ],
+        palette.top,
+        0.75,
+        tex,
+    )
     cv.ellipse((cx, 0.175 * H), (0.15 * H, 0.035 * H), palette.top, 0.75, texture=tex)  # shoulders
     # neck, head, hair
-    cv.poly([(cx - 0.03 * H, 0.12 * H), (cx + 0.03 * H, 0.12 * H), (cx + 0.03 * H, 0.17 * H), (cx - 0.03 * H, 0.17 * H)],
-            palette.skin, 0.95)
+    cv.poly(
+        [
+            (cx - 0.03 * H, 0.12 * H),
+            (cx + 0.03 * H, 0.12 * H),
+            (cx + 0.03 * H, 0.17 * H),
+            (cx - 0.03 * H, 0.17 * H),
+        ],
+        palette.skin,
+        0.95,
+    )
     cv.ellipse((cx, 0.075 * H), (0.058 * H, 0.072 * H), palette.skin, 1.0)
     cv.ellipse((cx, 0.045 * H), (0.06 * H, 0.045 * H), palette.hair, 0.85)
     return cv.done()
 
 
-def car(length_px: float, body: tuple[int, int, int], rng: np.random.Generator, facing: int = 1) -> Sprite:
+def car(
+    length_px: float, body: tuple[int, int, int], rng: np.random.Generator, facing: int = 1
+) -> Sprite:
     """A car seen from the side, ``length_px`` long, nose to the right if ``facing`` > 0.
 
     Heat: engine/bonnet 1.0, wheels 0.85, exhaust 0.9, body 0.45, glass 0.15.
     """
     L = length_px
     H = 0.45 * L
-    cw, ch = int(math.ceil(L)) + 2, int(math.ceil(H)) + 2
+    cw, ch = math.ceil(L) + 2, math.ceil(H) + 2
     cv = _Canvas(cw, ch)
     tex = _texture(ch, cw, "plain", 1, rng)
 
     def X(u: float) -> float:
         return (u if facing > 0 else 1 - u) * L
 
-    cv.poly([(X(0.0), 0.40 * H), (X(1.0), 0.45 * H), (X(1.0), 0.80 * H), (X(0.0), 0.80 * H)], body, 0.45, tex)
-    cv.poly([(X(0.22), 0.42 * H), (X(0.30), 0.05 * H), (X(0.68), 0.05 * H), (X(0.80), 0.43 * H)], body, 0.45, tex)
+    cv.poly(
+        [(X(0.0), 0.40 * H), (X(1.0), 0.45 * H), (X(1.0), 0.80 * H), (X(0.0), 0.80 * H)],
+        body,
+        0.45,
+        tex,
+    )
+    cv.poly(
+        [(X(0.22), 0.42 * H), (X(0.30), 0.05 * H), (X(0.68), 0.05 * H), (X(0.80), 0.43 * H)],
+        body,
+        0.45,
+        tex,
+    )
     glass = (70, 85, 105)
-    cv.poly([(X(0.27), 0.40 * H), (X(0.33), 0.12 * H), (X(0.47), 0.12 * H), (X(0.47), 0.40 * H)], glass, 0.15)
-    cv.poly([(X(0.50), 0.40 * H), (X(0.50), 0.12 * H), (X(0.66), 0.12 * H), (X(0.75), 0.41 * H)], glass, 0.15)
-    cv.poly([(X(0.80), 0.45 * H), (X(1.0), 0.48 * H), (X(1.0), 0.70 * H), (X(0.80), 0.70 * H)], body, 1.0, tex)  # bonnet/engine
+    cv.poly(
+        [(X(0.27), 0.40 * H), (X(0.33), 0.12 * H), (X(0.47), 0.12 * H), (X(0.47), 0.40 * H)],
+        glass,
+        0.15,
+    )
+    cv.poly(
+        [(X(0.50), 0.40 * H), (X(0.50), 0.12 * H), (X(0.66), 0.12 * H), (X(0.75), 0.41 * H)],
+        glass,
+        0.15,
+    )
+    cv.poly(
+        [(X(0.80), 0.45 * H), (X(1.0), 0.48 * H), (X(1.0), 0.70 * H), (X(0.80), 0.70 * H)],
+        body,
+        1.0,
+        tex,
+    )  # bonnet/engine
     cv.ellipse((X(0.985), 0.56 * H), (0.02 * L, 0.05 * H), (250, 240, 200), 0.7)  # headlight
     cv.ellipse((X(0.01), 0.55 * H), (0.012 * L, 0.05 * H), (200, 20, 20), 0.5)  # tail light
     cv.ellipse((X(0.05), 0.78 * H), (0.03 * L, 0.03 * H), (60, 60, 60), 0.9)  # exhaust
@@ -184,57 +261,92 @@ def car(length_px: float, body: tuple[int, int, int], rng: np.random.Generator, 
     return cv.done()
 
 
-def truck(length_px: float, body: tuple[int, int, int], rng: np.random.Generator, facing: int = 1) -> Sprite:
+def truck(
+    length_px: float, body: tuple[int, int, int], rng: np.random.Generator, facing: int = 1
+) -> Sprite:
     """A box truck seen from the side: an opaque cargo box, a cab, wheels.
 
     Heat: cab/engine 1.0, wheels 0.85, cargo box 0.25, glass 0.15.
     """
     L = length_px
     H = 0.55 * L
-    cw, ch = int(math.ceil(L)) + 2, int(math.ceil(H)) + 2
+    cw, ch = math.ceil(L) + 2, math.ceil(H) + 2
     cv = _Canvas(cw, ch)
     tex = _texture(ch, cw, "plain", 1, rng)
 
     def X(u: float) -> float:
         return (u if facing > 0 else 1 - u) * L
 
-    cv.poly([(X(0.0), 0.0), (X(0.74), 0.0), (X(0.74), 0.84 * H), (X(0.0), 0.84 * H)], body, 0.25, tex)
-    cv.poly([(X(0.0), 0.55 * H), (X(0.74), 0.55 * H), (X(0.74), 0.58 * H), (X(0.0), 0.58 * H)], (90, 90, 90), 0.25)
-    cv.poly([(X(0.75), 0.30 * H), (X(0.93), 0.30 * H), (X(1.0), 0.52 * H), (X(1.0), 0.84 * H), (X(0.75), 0.84 * H)],
-            (60, 70, 90), 1.0, tex)
-    cv.poly([(X(0.78), 0.34 * H), (X(0.91), 0.34 * H), (X(0.96), 0.50 * H), (X(0.78), 0.50 * H)], (70, 85, 105), 0.15)
+    cv.poly(
+        [(X(0.0), 0.0), (X(0.74), 0.0), (X(0.74), 0.84 * H), (X(0.0), 0.84 * H)], body, 0.25, tex
+    )
+    cv.poly(
+        [(X(0.0), 0.55 * H), (X(0.74), 0.55 * H), (X(0.74), 0.58 * H), (X(0.0), 0.58 * H)],
+        (90, 90, 90),
+        0.25,
+    )
+    cv.poly(
+        [
+            (X(0.75), 0.30 * H),
+            (X(0.93), 0.30 * H),
+            (X(1.0), 0.52 * H),
+            (X(1.0), 0.84 * H),
+            (X(0.75), 0.84 * H),
+        ],
+        (60, 70, 90),
+        1.0,
+        tex,
+    )
+    cv.poly(
+        [(X(0.78), 0.34 * H), (X(0.91), 0.34 * H), (X(0.96), 0.50 * H), (X(0.78), 0.50 * H)],
+        (70, 85, 105),
+        0.15,
+    )
     for u in (0.15, 0.32, 0.86):
         cv.ellipse((X(u), 0.86 * H), (0.065 * L, 0.13 * H), (20, 20, 20), 0.85)
     return cv.done()
 
 
-def pillar(width_px: float, height_px: float, color: tuple[int, int, int], rng: np.random.Generator) -> Sprite:
+def pillar(
+    width_px: float, height_px: float, color: tuple[int, int, int], rng: np.random.Generator
+) -> Sprite:
     """A static occluder (pole, pillar or wall segment); heat 0.05 (near ambient)."""
-    cw, ch = int(math.ceil(width_px)) + 1, int(math.ceil(height_px)) + 1
+    cw, ch = math.ceil(width_px) + 1, math.ceil(height_px) + 1
     cv = _Canvas(cw, ch)
     tex = _texture(ch, cw, "plain", 1, rng)
     cv.poly([(0, 0), (width_px, 0), (width_px, height_px), (0, height_px)], color, 0.05, tex)
     # a lighter edge so it reads as a 3-D object
-    cv.poly([(0, 0), (width_px * 0.15, 0), (width_px * 0.15, height_px), (0, height_px)],
-            tuple(min(int(c * 1.25), 255) for c in color), 0.05, tex)
+    cv.poly(
+        [(0, 0), (width_px * 0.15, 0), (width_px * 0.15, height_px), (0, height_px)],
+        tuple(min(int(c * 1.25), 255) for c in color),
+        0.05,
+        tex,
+    )
     return cv.done()
 
 
-def cyclist(height_px: float, palette: Palette, body: tuple[int, int, int], phase: float, rng: np.random.Generator,
-            facing: int = 1) -> Sprite:
-    """A person riding a bicycle, seen from the side, ``height_px`` tall (wheels to head), at pedal ``phase``.
+def cyclist(
+    height_px: float,
+    palette: Palette,
+    body: tuple[int, int, int],
+    phase: float,
+    rng: np.random.Generator,
+    facing: int = 1,
+) -> Sprite:
+    """A person riding a bicycle, seen from the side, ``height_px`` tall (wheels to head), at pedal
+    ``phase``.
 
     Heat: head 1.0, hands 0.9, torso 0.75, legs 0.7, tyres 0.35, frame 0.2.
     """
     H = height_px
     L = 1.05 * H  # wheelbase plus the wheels
-    cw, ch = int(math.ceil(L)) + 2, int(math.ceil(H)) + 2
+    cw, ch = math.ceil(L) + 2, math.ceil(H) + 2
     cv = _Canvas(cw, ch)
     tex = _texture(ch, cw, palette.pattern, 0.035 * H, rng)
     plain = _texture(ch, cw, "plain", 1, rng)
 
     def X(u: float) -> float:
-        return (u if facing > 0 else L - u)
+        return u if facing > 0 else L - u
 
     r = 0.19 * H
     wy = H - r - 0.01 * H
@@ -247,25 +359,56 @@ def cyclist(height_px: float, palette: Palette, body: tuple[int, int, int], phas
     bar = (0.74 * L, 0.45 * H)
     fw = 0.025 * H
 
-    def beam(a: tuple[float, float], b: tuple[float, float], width: float, color, heat: float, texture=None) -> None:
+    def beam(
+        a: tuple[float, float],
+        b: tuple[float, float],
+        width: float,
+        color,
+        heat: float,
+        texture=None,
+    ) -> None:
         dx, dy = b[0] - a[0], b[1] - a[1]
         n = math.hypot(dx, dy) or 1.0
         px, py = -dy / n * width / 2, dx / n * width / 2
-        cv.poly([(X(a[0]) + (px if facing > 0 else -px), a[1] + py), (X(a[0]) - (px if facing > 0 else -px), a[1] - py),
-                 (X(b[0]) - (px if facing > 0 else -px), b[1] - py), (X(b[0]) + (px if facing > 0 else -px), b[1] + py)],
-                color, heat, texture)
+        cv.poly(
+            [
+                (X(a[0]) + (px if facing > 0 else -px), a[1] + py),
+                (X(a[0]) - (px if facing > 0 else -px), a[1] - py),
+                (X(b[0]) - (px if facing > 0 else -px), b[1] - py),
+                (X(b[0]) + (px if facing > 0 else -px), b[1] + py),
+            ],
+            color,
+            heat,
+            texture,
+        )
 
-    for a, b in ((( back, wy), crank), (crank, seat), (seat, (back, wy)), (seat, bar), (crank, bar), (bar, (front, wy))):
+    for a, b in (
+        ((back, wy), crank),
+        (crank, seat),
+        (seat, (back, wy)),
+        (seat, bar),
+        (crank, bar),
+        (bar, (front, wy)),
+    ):
         beam(a, b, fw, body, 0.2)
     # rider: legs to the pedals (one phase), torso leaning forward, arms to the bar, head
     ang = 2 * math.pi * phase
     hip = (seat[0] + 0.01 * H, seat[1] - 0.03 * H)
     for sgn in (1, -1):
-        pedal = (crank[0] + sgn * 0.09 * H * math.cos(ang), crank[1] + sgn * 0.09 * H * math.sin(ang))
+        pedal = (
+            crank[0] + sgn * 0.09 * H * math.cos(ang),
+            crank[1] + sgn * 0.09 * H * math.sin(ang),
+        )
         knee = ((hip[0] + pedal[0]) / 2 + 0.10 * H, (hip[1] + pedal[1]) / 2 - 0.05 * H)
         beam(hip, knee, 0.085 * H, palette.bottom, 0.7, plain)
         beam(knee, pedal, 0.07 * H, palette.bottom, 0.7, plain)
-        beam((pedal[0] - 0.03 * H, pedal[1]), (pedal[0] + 0.04 * H, pedal[1]), 0.035 * H, palette.shoes, 0.4)
+        beam(
+            (pedal[0] - 0.03 * H, pedal[1]),
+            (pedal[0] + 0.04 * H, pedal[1]),
+            0.035 * H,
+            palette.shoes,
+            0.4,
+        )
     shoulder = (0.58 * L, 0.20 * H)
     beam(hip, shoulder, 0.17 * H, palette.top, 0.75, tex)
     beam(shoulder, bar, 0.06 * H, palette.top, 0.8, tex)

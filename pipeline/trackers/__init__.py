@@ -16,31 +16,52 @@ from pipeline.trackers.base import BackgroundEngine, Engine, FunctionalEngine
 from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
 
 
-def _engine(name: str, init: Callable, step: Callable, *warm_ups: Callable[[], None],
-            background: bool = False) -> Callable[[PipelineConfig], Engine]:
-    """Factory of a functional engine that first compiles or loads its numba kernels (``warm_ups``, once
-    per process), so that the tracker's first timed frame does not pay for them; with ``background``, one
-    whose detector gets the sequence's background (:class:`~pipeline.trackers.base.BackgroundEngine`)."""
+def _engine(
+    name: str,
+    init: Callable,
+    step: Callable,
+    *warm_ups: Callable[[], None],
+    background: bool = False,
+) -> Callable[[PipelineConfig], Engine]:
+    """Factory of a functional engine that first compiles or loads its numba kernels (``warm_ups``,
+    once per process), so that the tracker's first timed frame does not pay for them; with
+    ``background``, one whose detector gets the sequence's background
+    (:class:`~pipeline.trackers.base.BackgroundEngine`)."""
 
     def make(cfg: PipelineConfig) -> Engine:
         for warm_up in warm_ups:
             warm_up()
         if background:
-            return BackgroundEngine(name, init, step, cfg, _dual_detector_channel, lazy=True,
-                                    detection=lambda c: infrared_only(c.detection))
+            return BackgroundEngine(
+                name,
+                init,
+                step,
+                cfg,
+                _dual_detector_channel,
+                lazy=True,
+                detection=lambda c: infrared_only(c.detection),
+            )
         return FunctionalEngine(name, init, step, cfg)
 
     return make
 
 
 def _dual_detector_channel(channels: tuple[str, ...], cfg: PipelineConfig) -> str:
-    """The dual tracker's whole-frame search detects in the IR frame, in the visible one without IR."""
+    """The dual tracker's whole-frame search detects in the IR frame, in the visible one without
+    IR."""
     return "infrared" if "infrared" in channels else "visible"
 
 
 _FACTORIES: dict[str, Callable[[PipelineConfig], Engine]] = {
-    "dual": _engine("dual", _dual.init, _dual.step, histogram.warm_up, contour.warm_up, appearance.warm_up,
-                    background=True),
+    "dual": _engine(
+        "dual",
+        _dual.init,
+        _dual.step,
+        histogram.warm_up,
+        contour.warm_up,
+        appearance.warm_up,
+        background=True,
+    ),
     "meanshift": _engine("meanshift", _meanshift.init, _meanshift.step, histogram.warm_up),
     "kalman-camshift": _engine("kalman-camshift", _kc.init, _kc.step, histogram.warm_up),
     "detect": _detect.make_engine,
@@ -76,5 +97,13 @@ def make_tracker(name: str, cfg: PipelineConfig) -> Engine:
     return factory(cfg)
 
 
-__all__ = ["DEFAULT_TRACKER", "NEEDS_NO_INIT", "PEERS", "Engine", "available_trackers", "detect_init", "make_tracker",
-           "tracker_names"]
+__all__ = [
+    "DEFAULT_TRACKER",
+    "NEEDS_NO_INIT",
+    "PEERS",
+    "Engine",
+    "available_trackers",
+    "detect_init",
+    "make_tracker",
+    "tracker_names",
+]

@@ -27,8 +27,8 @@ from collections.abc import Callable, Sequence
 from typing import Generic, Protocol, TypeVar
 
 from pipeline.config import PipelineConfig
-from pipeline.stages.detection import DetectionConfig
 from pipeline.io.sequence import FramePair
+from pipeline.stages.detection import DetectionConfig
 from pipeline.types import FrameResult, InitTarget
 
 S = TypeVar("S")
@@ -81,17 +81,23 @@ class BackgroundEngine(FunctionalEngine[S]):
     :meth:`attach` has been given the sequence (``detection.background_init = "sequence"``), every
     frame's background (:class:`pipeline.io.background.SequenceBackground`) is put there before the
     frame is stepped. Not attached, the state's background is whatever ``init`` and ``step`` leave.
-    ``channel`` picks the detector's channel from the sequence's channels. With ``lazy``, what is put
-    there is a function of no arguments returning the background, so that a tracker that seldom runs
-    its detector (the dual tracker's whole-frame search) reads the sequence's samples only if it does.
-    ``detection`` gives the detection settings the engine's detector runs with (default: the
-    configuration's ``detection`` section), which decide what the background estimates.
+    ``channel`` picks the detector's channel from the sequence's channels. With ``lazy``, what is
+    put there is a function of no arguments returning the background, so that a tracker that seldom
+    runs its detector (the dual tracker's whole-frame search) reads the sequence's samples only if
+    it does. ``detection`` gives the detection settings the engine's detector runs with (default:
+    the configuration's ``detection`` section), which decide what the background estimates.
     """
 
-    def __init__(self, name: str, init: Callable[..., tuple[S, FrameResult]],
-                 step: Callable[[S, FramePair, PipelineConfig], tuple[S, FrameResult]], cfg: PipelineConfig,
-                 channel: Callable[[tuple[str, ...], PipelineConfig], str], lazy: bool = False,
-                 detection: Callable[[PipelineConfig], DetectionConfig] | None = None):
+    def __init__(
+        self,
+        name: str,
+        init: Callable[..., tuple[S, FrameResult]],
+        step: Callable[[S, FramePair, PipelineConfig], tuple[S, FrameResult]],
+        cfg: PipelineConfig,
+        channel: Callable[[tuple[str, ...], PipelineConfig], str],
+        lazy: bool = False,
+        detection: Callable[[PipelineConfig], DetectionConfig] | None = None,
+    ):
         super().__init__(name, init, step, cfg)
         self._channel = channel
         self._detection = detection
@@ -110,7 +116,9 @@ class BackgroundEngine(FunctionalEngine[S]):
         return functools.partial(self._source.at, index) if self._lazy else self._source.at(index)
 
     def start(self, frames: FramePair, targets: Sequence[InitTarget]) -> FrameResult:
-        self.state, result = self._init(frames, targets, self.cfg, background=self._background(frames.index))
+        self.state, result = self._init(
+            frames, targets, self.cfg, background=self._background(frames.index)
+        )
         return result
 
     def step(self, frames: FramePair) -> FrameResult:

@@ -42,7 +42,14 @@ from pipeline.io.sequence import FramePair
 from pipeline.io.sequence import Sequence as FrameSequence
 from pipeline.stages import kalman
 from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
-from pipeline.stages.detection import Background, DetectionConfig, Region, detect, infrared_only, to_grey
+from pipeline.stages.detection import (
+    Background,
+    DetectionConfig,
+    Region,
+    detect,
+    infrared_only,
+    to_grey,
+)
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.trackers.base import BackgroundEngine, detector_channel, pick_channel
 from pipeline.types import (
@@ -76,8 +83,12 @@ class DetectState:
     tracks: tuple[DetTrack, ...]
     next_id: int
     channel: str
-    background: Background | None = None  # the detector's background estimate (``detection.method = foreground``)
-    dormant: tuple[tuple[DetTrack, int], ...] = ()  # confirmed tracks given up, with the frame they were lost
+    background: Background | None = (
+        None  # the detector's background estimate (``detection.method = foreground``)
+    )
+    dormant: tuple[
+        tuple[DetTrack, int], ...
+    ] = ()  # confirmed tracks given up, with the frame they were lost
 
 
 def _kcfg(cfg: PipelineConfig) -> kalman.KalmanConfig:
@@ -86,32 +97,63 @@ def _kcfg(cfg: PipelineConfig) -> kalman.KalmanConfig:
 
 @functools.lru_cache(maxsize=8)
 def _motion_cfg(k: kalman.KalmanConfig, a: AssociationConfig) -> kalman.KalmanConfig:
-    """The tracks' constant-velocity model with the association section's noises (made once per configuration)."""
-    return dataclasses.replace(k, model="constant_velocity", position_noise=a.position_noise,
-                               size_noise=a.position_noise / 4, position_std_px=a.position_std_px)
+    """The tracks' constant-velocity model with the association section's noises (made once per
+    configuration)."""
+    return dataclasses.replace(
+        k,
+        model="constant_velocity",
+        position_noise=a.position_noise,
+        size_noise=a.position_noise / 4,
+        position_std_px=a.position_std_px,
+    )
 
 
-def _new_track(tid: int, r: Region, grey: np.ndarray, frame: int, kcfg: kalman.KalmanConfig) -> DetTrack:
-    return DetTrack(tid, kalman.init_state(r.box, kcfg), r.box, TargetStatus.TENTATIVE, frame, 1, 0, grey, r.box)
+def _new_track(
+    tid: int, r: Region, grey: np.ndarray, frame: int, kcfg: kalman.KalmanConfig
+) -> DetTrack:
+    return DetTrack(
+        tid,
+        kalman.init_state(r.box, kcfg),
+        r.box,
+        TargetStatus.TENTATIVE,
+        frame,
+        1,
+        0,
+        grey,
+        r.box,
+    )
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig,
-         background: Background | None = None) -> tuple[DetectState, FrameResult]:
+def init(
+    frames: FramePair,
+    targets: Sequence[InitTarget],
+    cfg: PipelineConfig,
+    background: Background | None = None,
+) -> tuple[DetectState, FrameResult]:
     """Start with no tracks (``targets`` are ignored: the detector finds them); ``background``, the
-    detector's (the sequence's, :mod:`pipeline.io.background`), or None to bootstrap it from this frame."""
+    detector's (the sequence's, :mod:`pipeline.io.background`), or None to bootstrap it from this
+    frame."""
     ch = pick_channel(frames, cfg.detection.channel)
     state = DetectState((), 1, ch, background)
     return step(state, frames, cfg)
 
 
 def make_engine(cfg: PipelineConfig) -> BackgroundEngine[DetectState]:
-    """The detection-driven tracker as an engine; attached to a sequence, its detector uses the sequence's
-    background (``detection.background_init = "sequence"``)."""
-    return BackgroundEngine("detect", init, step, cfg, detector_channel, detection=detection_settings)
+    """The detection-driven tracker as an engine; attached to a sequence, its detector uses the
+    sequence's background (``detection.background_init = "sequence"``)."""
+    return BackgroundEngine(
+        "detect", init, step, cfg, detector_channel, detection=detection_settings
+    )
 
 
-def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState], regions: Sequence[Region],
-               grey: np.ndarray, cfg: PipelineConfig, timing: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pair_costs(
+    tracks: Sequence[DetTrack],
+    priors: Sequence[kalman.GaussianState],
+    regions: Sequence[Region],
+    grey: np.ndarray,
+    cfg: PipelineConfig,
+    timing: dict[str, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(cost N x M, Λ_I N x M (NaN outside the gate), γ N x M) of every track/detection pair."""
     a = cfg.association
     rm = cfg.roi_match
@@ -134,7 +176,9 @@ def pair_costs(tracks: Sequence[DetTrack], priors: Sequence[kalman.GaussianState
             c = -ll[j] if a.use_state else 0.0
             if a.use_image:
                 ti = time.perf_counter()
-                rho = match_boxes(t.template, t.template_box.as_tuple(), grey, regions[j].box.as_tuple(), rm).correlation
+                rho = match_boxes(
+                    t.template, t.template_box.as_tuple(), grey, regions[j].box.as_tuple(), rm
+                ).correlation
                 img_s += time.perf_counter() - ti
                 lam_i[i, j] = rho
                 c -= math.log(image_likelihood(rho, rm))
@@ -159,7 +203,9 @@ def detection_settings(cfg: PipelineConfig) -> DetectionConfig:
     return _detection_cfg(cfg.detection, cfg.association)
 
 
-def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[DetectState, FrameResult]:
+def step(
+    state: DetectState, frames: FramePair, cfg: PipelineConfig
+) -> tuple[DetectState, FrameResult]:
     """One frame: detect, predict, associate, update, manage tracks."""
     a = cfg.association
     kcfg = _kcfg(cfg)
@@ -170,16 +216,26 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
     image = getattr(frames, state.channel)
     grey = to_grey(image)
     H, W = grey.shape
-    found = detect(grey, detection_settings(cfg), state.background,
-                   frames.visible if state.channel == "infrared" else None)
+    found = detect(
+        grey,
+        detection_settings(cfg),
+        state.background,
+        frames.visible if state.channel == "infrared" else None,
+    )
     regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px]
     t1 = time.perf_counter()
     timing["detection"] = t1 - t0
     priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]
-    # a detection holding the predicted centres of two or more confirmed targets is their merged blob:
-    # it measures none of them (they coast inside it) and starts no track
-    inside = [[i for i, (t, p) in enumerate(zip(state.tracks, priors, strict=True))
-               if t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])] for r in regions]
+    # a detection holding the predicted centres of two or more confirmed targets is their merged
+    # blob: it measures none of them (they coast inside it) and starts no track
+    inside = [
+        [
+            i
+            for i, (t, p) in enumerate(zip(state.tracks, priors, strict=True))
+            if t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
+        ]
+        for r in regions
+    ]
     group = {j for j, members in enumerate(inside) if len(members) >= 2}
     cost, lam_i, gam = pair_costs(state.tracks, priors, regions, grey, cfg, timing)
     if group:
@@ -208,36 +264,84 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
                 old = _relink(r.box, dormant, frames.index, a.relink_frames)
                 if old is not None:
                     dormant = tuple(d for d in dormant if d[0].id != old.id)
-                    events.append(Event(EventKind.REACQUIRED, f"T{old.id} found again ({frames.index - t.born + 1} "
-                                        f"frames after a new track started on it)", (old.id,)))
+                    events.append(
+                        Event(
+                            EventKind.REACQUIRED,
+                            f"T{old.id} found again ({frames.index - t.born + 1} "
+                            f"frames after a new track started on it)",
+                            (old.id,),
+                        )
+                    )
                     t = dataclasses.replace(t, id=old.id)
                 else:
-                    events.append(Event(EventKind.CONFIRMED, f"T{t.id} confirmed ({hits} detections in {age} frames)",
-                                        (t.id,)))
+                    events.append(
+                        Event(
+                            EventKind.CONFIRMED,
+                            f"T{t.id} confirmed ({hits} detections in {age} frames)",
+                            (t.id,),
+                        )
+                    )
             elif status in (TargetStatus.OCCLUDED_SEVERE, TargetStatus.MERGED):
-                events.append(Event(EventKind.SPLIT if status == TargetStatus.MERGED else EventKind.OCCLUSION_END,
-                                    f"T{t.id} detected again on its own", (t.id,)))
+                events.append(
+                    Event(
+                        EventKind.SPLIT
+                        if status == TargetStatus.MERGED
+                        else EventKind.OCCLUSION_END,
+                        f"T{t.id} detected again on its own",
+                        (t.id,),
+                    )
+                )
                 status = TargetStatus.TRACKING
             box = r.box
-            nt = dataclasses.replace(t, kf=upd.state, box=box, status=status, hits=hits, misses=misses, template=grey,
-                                     template_box=r.box)
+            nt = dataclasses.replace(
+                t,
+                kf=upd.state,
+                box=box,
+                status=status,
+                hits=hits,
+                misses=misses,
+                template=grey,
+                template_box=r.box,
+            )
             rho = lam_i[i, j]
-            diag = {"gamma": float(gam[i, j]), "lambda_i": float(rho) if np.isfinite(rho) else float("nan"),
-                    "cost": float(cost[i, j]), "detections": float(len(regions))}
+            diag = {
+                "gamma": float(gam[i, j]),
+                "lambda_i": float(rho) if np.isfinite(rho) else float("nan"),
+                "cost": float(cost[i, j]),
+                "detections": float(len(regions)),
+            }
             source = "detection"
-        elif t.status != TargetStatus.TENTATIVE and (k := _blob_containing(prior, regions)) is not None:
-            # not detected on its own but inside a detected blob: merged with another target; coast inside it
+        elif (
+            t.status != TargetStatus.TENTATIVE
+            and (k := _blob_containing(prior, regions)) is not None
+        ):
+            # not detected on its own but inside a detected blob: merged with another target; coast
+            # inside it
             r = regions[k]
             c = _inside(prior.x[:2], (float(prior.x[2]), float(prior.x[3])), r.box)
-            box = BBox.from_center(c[0], c[1], max(float(prior.x[2]), 1.0), max(float(prior.x[3]), 1.0))
+            box = BBox.from_center(
+                c[0], c[1], max(float(prior.x[2]), 1.0), max(float(prior.x[3]), 1.0)
+            )
             hits, misses = t.hits, t.misses + 1
             status = TargetStatus.MERGED
             if t.status != TargetStatus.MERGED:
-                events.append(Event(EventKind.MERGE, f"T{t.id} merged into the blob at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
-                                    (t.id,)))
+                events.append(
+                    Event(
+                        EventKind.MERGE,
+                        f"T{t.id} merged into the blob at "
+                        f"({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
+                        (t.id,),
+                    )
+                )
             if misses > a.max_merged_frames:
                 status = TargetStatus.LOST
-                events.append(Event(EventKind.LOST, f"T{t.id} lost ({misses} frames inside a merged blob)", (t.id,)))
+                events.append(
+                    Event(
+                        EventKind.LOST,
+                        f"T{t.id} lost ({misses} frames inside a merged blob)",
+                        (t.id,),
+                    )
+                )
             nt = dataclasses.replace(t, kf=prior, box=box, status=status, hits=hits, misses=misses)
             diag = {"detections": float(len(regions)), "missing": float(misses)}
             source = "kalman-in-blob"
@@ -249,22 +353,48 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
             if status == TargetStatus.TENTATIVE:
                 if age >= a.confirm_window:  # failed M of N: dropped without ever being reported
                     continue
-            elif misses > min(a.max_misses, a.coast_per_hit * hits) or box.clip(W, H).area < 0.25 * box.area:
+            elif (
+                misses > min(a.max_misses, a.coast_per_hit * hits)
+                or box.clip(W, H).area < 0.25 * box.area
+            ):
                 status = TargetStatus.LOST
-                why = "left the frame" if box.clip(W, H).area < 0.25 * box.area else f"{misses} frames without a detection"
+                why = (
+                    "left the frame"
+                    if box.clip(W, H).area < 0.25 * box.area
+                    else f"{misses} frames without a detection"
+                )
                 events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
             elif status in (TargetStatus.TRACKING, TargetStatus.MERGED):
                 status = TargetStatus.OCCLUDED_SEVERE
-                events.append(Event(EventKind.OCCLUSION_START, f"T{t.id} not detected (coasting)", (t.id,)))
+                events.append(
+                    Event(EventKind.OCCLUSION_START, f"T{t.id} not detected (coasting)", (t.id,))
+                )
             nt = dataclasses.replace(t, kf=prior, box=box, status=status, hits=hits, misses=misses)
             diag = {"detections": float(len(regions)), "missing": float(misses)}
             source = "kalman"
             rho = float("nan")
         if status == TargetStatus.TENTATIVE and age >= a.confirm_window and hits < a.confirm_hits:
             continue
-        conf = {TargetStatus.TRACKING: 1.0, TargetStatus.OCCLUDED_SEVERE: 0.3, TargetStatus.TENTATIVE: 0.2}.get(status, 0.0)
-        results.append(TargetResult(t.id, box, status, source, {}, float(rho) if np.isfinite(rho) else float("nan"),
-                                    "none", conf, (), diag, {"prediction": prior.box}))
+        conf = {
+            TargetStatus.TRACKING: 1.0,
+            TargetStatus.OCCLUDED_SEVERE: 0.3,
+            TargetStatus.TENTATIVE: 0.2,
+        }.get(status, 0.0)
+        results.append(
+            TargetResult(
+                t.id,
+                box,
+                status,
+                source,
+                {},
+                float(rho) if np.isfinite(rho) else float("nan"),
+                "none",
+                conf,
+                (),
+                diag,
+                {"prediction": prior.box},
+            )
+        )
         if status != TargetStatus.LOST:
             tracks.append(nt)
         elif a.relink_frames > 0:
@@ -272,35 +402,69 @@ def step(state: DetectState, frames: FramePair, cfg: PipelineConfig) -> tuple[De
     next_id = state.next_id
     for j in assignment.unmatched_detections:
         r = regions[j]
-        if j in group or any(t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2]) for t, p in zip(state.tracks, priors, strict=True)):
+        if j in group or any(
+            t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
+            for t, p in zip(state.tracks, priors, strict=True)
+        ):
             continue  # a blob around a known target (merged targets): not a new one
-        old = _relink(r.box, dormant, frames.index, a.relink_frames) if a.resume_min_correlation <= 1 else None
+        old = (
+            _relink(r.box, dormant, frames.index, a.relink_frames)
+            if a.resume_min_correlation <= 1
+            else None
+        )
         if old is not None:
-            rho = match_boxes(old.template, old.template_box.as_tuple(), grey, r.box.as_tuple(), cfg.roi_match).correlation
+            rho = match_boxes(
+                old.template, old.template_box.as_tuple(), grey, r.box.as_tuple(), cfg.roi_match
+            ).correlation
             if not (np.isfinite(rho) and rho >= a.resume_min_correlation):
                 old = None
-        if old is not None:  # a dormant track detected again, looking as it did: it resumes at once, with its id
+        # a dormant track detected again, looking as it did: it resumes at once, with its id
+        if old is not None:
             dormant = tuple(d for d in dormant if d[0].id != old.id)
-            t = dataclasses.replace(_new_track(old.id, r, grey, frames.index, kcfg), status=TargetStatus.TRACKING,
-                                    hits=a.confirm_hits)
+            t = dataclasses.replace(
+                _new_track(old.id, r, grey, frames.index, kcfg),
+                status=TargetStatus.TRACKING,
+                hits=a.confirm_hits,
+            )
             events.append(Event(EventKind.REACQUIRED, f"T{old.id} detected again", (old.id,)))
         else:
             t = _new_track(next_id, r, grey, frames.index, kcfg)
-            events.append(Event(EventKind.BIRTH, f"T{next_id} born at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
-                                (next_id,)))
+            events.append(
+                Event(
+                    EventKind.BIRTH,
+                    f"T{next_id} born at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
+                    (next_id,),
+                )
+            )
             next_id += 1
             if a.confirm_hits <= 1:
                 t = dataclasses.replace(t, status=TargetStatus.TRACKING)
         tracks.append(t)
-        results.append(TargetResult(t.id, r.box, t.status, "detection", {}, float("nan"), "none",
-                                    0.2 if t.status == TargetStatus.TENTATIVE else 1.0, (), {"detections": float(len(regions))}, {}))
+        results.append(
+            TargetResult(
+                t.id,
+                r.box,
+                t.status,
+                "detection",
+                {},
+                float("nan"),
+                "none",
+                0.2 if t.status == TargetStatus.TENTATIVE else 1.0,
+                (),
+                {"detections": float(len(regions))},
+                {},
+            )
+        )
     timing["detect_tracker"] = time.perf_counter() - t0
-    res = FrameResult(frames.index, tuple(sorted(results, key=lambda r: r.id)), tuple(events), timing)
+    res = FrameResult(
+        frames.index, tuple(sorted(results, key=lambda r: r.id)), tuple(events), timing
+    )
     return DetectState(tuple(tracks), next_id, state.channel, found.background, dormant), res
 
 
-def _relink(box: BBox, dormant: Sequence[tuple[DetTrack, int]], frame: int,
-            max_frames: int) -> DetTrack | None:
+def _relink(
+    box: BBox, dormant: Sequence[tuple[DetTrack, int]], frame: int, max_frames: int
+) -> DetTrack | None:
     """The dormant track that a detection (or a newly confirmed track) at ``frame`` on ``box``
     continues, or None.
 
@@ -340,15 +504,21 @@ def _blob_containing(prior: kalman.GaussianState, regions: Sequence[Region]) -> 
 
 
 def _inside(c: np.ndarray, size: tuple[float, float], blob: BBox) -> tuple[float, float]:
-    """Centre ``c`` moved so that a box of ``size`` lies inside ``blob`` (centred where it cannot)."""
+    """Centre ``c`` moved so that a box of ``size`` lies inside ``blob`` (centred where it
+    cannot)."""
     out = []
-    for v, sz, lo, hi in ((float(c[0]), size[0], blob.x, blob.x2), (float(c[1]), size[1], blob.y, blob.y2)):
+    for v, sz, lo, hi in (
+        (float(c[0]), size[0], blob.x, blob.x2),
+        (float(c[1]), size[1], blob.y, blob.y2),
+    ):
         a, b = lo + sz / 2, hi - sz / 2
         out.append((lo + hi) / 2 if a > b else min(max(v, a), b))
     return out[0], out[1]
 
 
-def detect_init(seq: FrameSequence, cfg: PipelineConfig, frames_to_scan: int = 5) -> list[InitTarget]:
+def detect_init(
+    seq: FrameSequence, cfg: PipelineConfig, frames_to_scan: int = 5
+) -> list[InitTarget]:
     """Initial targets for another tracker: run the detection-driven tracker over the first
     frames and take the tracks confirmed by then that were detected in frame 1, at their
     frame-1 boxes, with ids 1..N left to right (an InputError when there is none)."""
@@ -366,8 +536,12 @@ def detect_init(seq: FrameSequence, cfg: PipelineConfig, frames_to_scan: int = 5
         if fp.index == 1:
             first = {r.id: r.box for r in res.targets}
     assert res is not None
-    found = [first[r.id] for r in res.targets if r.status == TargetStatus.TRACKING and r.id in first]
+    found = [
+        first[r.id] for r in res.targets if r.status == TargetStatus.TRACKING and r.id in first
+    ]
     if not found:
-        raise InputError(f"--detect found no target in frame 1 confirmed within {n} frames of {seq.path}; "
-                         "pass --init x,y,w,h or tune the [detection] section")
+        raise InputError(
+            f"--detect found no target in frame 1 confirmed within {n} frames of {seq.path}; "
+            "pass --init x,y,w,h or tune the [detection] section"
+        )
     return [InitTarget(k + 1, b) for k, b in enumerate(sorted(found, key=lambda b: (b.x, b.y)))]

@@ -88,8 +88,8 @@ from pipeline.stages.histogram import bhattacharyya, bhattacharyya_distance
 from pipeline.stages.motion import coast_start, hold_rates, stop
 from pipeline.stages.occlusion import (
     AreaReference,
-    OcclusionConfig,
     Grade,
+    OcclusionConfig,
     grade_occlusion,
     is_lost,
     next_severe_run,
@@ -118,9 +118,12 @@ class KCTarget:
     last_rect: BBox
     reference: AreaReference
     severe_run: int = 0
-    history: tuple[tuple[float, float, float, float, float], ...] = ()  # clean (frame, cx, cy, w, h), newest last
+    history: tuple[
+        tuple[float, float, float, float, float], ...
+    ] = ()  # clean (frame, cx, cy, w, h), newest last
     missing_run: int = 0  # frames in a row without a measurement
-    noise_d: float = 0.0  # the colour distance sampling noise alone gives this target (camshift.sampling_distance)
+    # the colour distance sampling noise alone gives this target (camshift.sampling_distance)
+    noise_d: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -137,12 +140,20 @@ def _bins(cfg: PipelineConfig, channel: str) -> int:
 SATURATION_BINS = 4
 
 
-def _feature(image: np.ndarray, cfg: PipelineConfig, channel: str, saturation_bins: int = 1, hsv: np.ndarray | None = None):
+def _feature(
+    image: np.ndarray,
+    cfg: PipelineConfig,
+    channel: str,
+    saturation_bins: int = 1,
+    hsv: np.ndarray | None = None,
+):
     c = cfg.camshift
     return feature(image, _bins(cfg, channel), c.min_saturation, c.min_value, saturation_bins, hsv)
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[KCState, FrameResult]:
+def init(
+    frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig
+) -> tuple[KCState, FrameResult]:
     channel = pick_channel(frames, cfg.opencv.channel)
     image = getattr(frames, channel)
     f = _feature(image, cfg, channel, cfg.camshift.saturation_bins)
@@ -152,12 +163,24 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) 
         mask = box_mask(image.shape, t.box)
         q = histogram(f, mask)
         if cfg.camshift.background_weighting_scale > 0:  # beyond the paper: CBWH
-            q = weighted_model(q, background_weights(f, t.box, cfg.camshift.background_weighting_scale))
+            q = weighted_model(
+                q, background_weights(f, t.box, cfg.camshift.background_weighting_scale)
+            )
         colour = kernel_masked_histogram(fc, t.box)
         kf = kalman.init_state(t.box, cfg.kalman)
         noise = sampling_distance(fc, t.box) if cfg.occlusion.sampling_noise else 0.0
-        states.append(KCTarget(t.id, kf, q, colour, TargetStatus.TRACKING, t.box, AreaReference((t.box.area,)),
-                               noise_d=noise))
+        states.append(
+            KCTarget(
+                t.id,
+                kf,
+                q,
+                colour,
+                TargetStatus.TRACKING,
+                t.box,
+                AreaReference((t.box.area,)),
+                noise_d=noise,
+            )
+        )
         results.append(TargetResult(t.id, t.box, TargetStatus.TRACKING, "init", rho=1.0))
     return KCState(tuple(states), channel), FrameResult(frames.index, tuple(results))
 
@@ -169,15 +192,25 @@ def _clip_center(box: BBox, width: int, height: int) -> BBox:
     return box.with_center(cx, cy)
 
 
-def _fixed_size_candidates(prob: np.ndarray, center: tuple[float, float], size: BBox, scale: float,
-                           cfg_cs: object, last_seen: tuple[float, float] | None = None) -> list[BBox]:
-    """The paper's search during severe occlusion: a fixed-size window (``cv2.meanShift``), from the
-    prediction with the target's last good size, and once more after a first pass with the window
-    enlarged ``scale`` times (to reach a target that re-appears away from its prediction); and from
-    ``last_seen``, where the target was last measured cleanly, when given (a target that stopped
-    behind the occluder while its prediction coasted on)."""
+def _fixed_size_candidates(
+    prob: np.ndarray,
+    center: tuple[float, float],
+    size: BBox,
+    scale: float,
+    cfg_cs: object,
+    last_seen: tuple[float, float] | None = None,
+) -> list[BBox]:
+    """The paper's search during severe occlusion: a fixed-size window (``cv2.meanShift``), from
+    the prediction with the target's last good size, and once more after a first pass with the
+    window enlarged ``scale`` times (to reach a target that re-appears away from its prediction);
+    and from ``last_seen``, where the target was last measured cleanly, when given (a target that
+    stopped behind the occluder while its prediction coasted on)."""
     h, w = prob.shape
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg_cs.max_iterations, cfg_cs.epsilon_px)
+    crit = (
+        cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT,
+        cfg_cs.max_iterations,
+        cfg_cs.epsilon_px,
+    )
     out = []
     starts = [center]
     if last_seen is not None and 0 <= last_seen[0] < w and 0 <= last_seen[1] < h:
@@ -196,8 +229,11 @@ def _fixed_size_candidates(prob: np.ndarray, center: tuple[float, float], size: 
 def _noise_aware(ocfg: OcclusionConfig, noise_d: float) -> OcclusionConfig:
     """The occlusion thresholds Tb and the re-acquisition distance widened by the target's
     sampling noise, added in quadrature."""
-    return dataclasses.replace(ocfg, distance_threshold=min(math.hypot(ocfg.distance_threshold, noise_d), 1.0),
-                               reacquire_distance=min(math.hypot(ocfg.reacquire_distance, noise_d), 1.0))
+    return dataclasses.replace(
+        ocfg,
+        distance_threshold=min(math.hypot(ocfg.distance_threshold, noise_d), 1.0),
+        reacquire_distance=min(math.hypot(ocfg.reacquire_distance, noise_d), 1.0),
+    )
 
 
 def scaled_like(found: BBox, last: BBox, max_step: float) -> BBox:
@@ -217,8 +253,9 @@ def _match(fc, box: BBox, colour: np.ndarray) -> float:
     return bhattacharyya_distance(bhattacharyya(kernel_masked_histogram(fc, box), colour))
 
 
-def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: str, frame: int
-                 ) -> tuple[KCTarget, TargetResult, list[Event]]:
+def track_target(
+    image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: str, frame: int
+) -> tuple[KCTarget, TargetResult, list[Event]]:
     """One frame of Kalman-CAMShift for one target."""
     kcfg, ocfg, ccfg = cfg.kalman, cfg.occlusion, cfg.camshift
     if t.noise_d > 0:
@@ -229,14 +266,22 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
     missing = t.status != TargetStatus.TRACKING
     prior = kalman.predict(hold_rates(t.kf, kcfg) if missing else t.kf, F, Q)
     pbox = prior.box
-    window = _search_window(pbox, ocfg.missing_search_scale if missing else ocfg.search_scale, w, h)
-    margin = 12 + 0.25 * max(window.w, window.h)  # CamShift grows the window by 10 px for its moments
+    window = _search_window(
+        pbox, ocfg.missing_search_scale if missing else ocfg.search_scale, w, h
+    )
+    margin = 12 + 0.25 * max(
+        window.w, window.h
+    )  # CamShift grows the window by 10 px for its moments
     x0, y0 = int(max(window.x - margin, 0)), int(max(window.y - margin, 0))
     x1, y1 = int(min(window.x2 + margin, w)), int(min(window.y2 + margin, h))
     roi = np.ascontiguousarray(image[y0:y1, x0:x1])
     hsv = to_hsv(roi) if roi.ndim == 3 else None
     f = _feature(roi, cfg, channel, ccfg.saturation_bins, hsv)
-    fc = f if ccfg.saturation_bins == SATURATION_BINS else _feature(roi, cfg, channel, SATURATION_BINS, hsv)
+    fc = (
+        f
+        if ccfg.saturation_bins == SATURATION_BINS
+        else _feature(roi, cfg, channel, SATURATION_BINS, hsv)
+    )
     prob = back_project(f, t.model)
     local = window.shifted(-x0, -y0)
     cs = camshift(prob, local, ccfg.max_iterations, ccfg.epsilon_px)
@@ -247,24 +292,40 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
     if missing and d >= ocfg.reacquire_distance:
         # re-acquisition check with the fixed size the paper prescribes while the target is missing
         seen = (t.history[-1][1] - x0, t.history[-1][2] - y0) if t.history else None
-        for fixed in _fixed_size_candidates(prob, (pbox.cx - x0, pbox.cy - y0), t.last_rect,
-                                            ocfg.missing_search_scale, ccfg, seen):
+        for fixed in _fixed_size_candidates(
+            prob, (pbox.cx - x0, pbox.cy - y0), t.last_rect, ocfg.missing_search_scale, ccfg, seen
+        ):
             d_fixed = _match(fc, fixed, t.colour)
             if d_fixed < d:
-                found, d, area, source = fixed.shifted(x0, y0), d_fixed, fixed.area, "meanshift-fixed"
+                found, d, area, source = (
+                    fixed.shifted(x0, y0),
+                    d_fixed,
+                    fixed.area,
+                    "meanshift-fixed",
+                )
     min_area = t.reference.min_area(ocfg)
     grade = grade_occlusion(d, area, min_area, ocfg, (t.last_rect if missing else pbox).area)
     if missing and grade == Grade.NONE and d >= ocfg.reacquire_distance:
-        grade = Grade.PARTIAL if area >= (min_area or 0.0) else Grade.SEVERE  # hysteresis: not yet taken back
+        grade = (
+            Grade.PARTIAL if area >= (min_area or 0.0) else Grade.SEVERE
+        )  # hysteresis: not yet taken back
     events: list[Event] = []
     reference = t.reference
     severe_run = next_severe_run(grade, t.severe_run)
-    grown = found is not None and area > ocfg.max_area_growth * (t.last_rect if missing else pbox).area
-    if grade == Grade.NONE and found is not None and grown:  # CamShift spread onto its colour around: no size
+    grown = (
+        found is not None and area > ocfg.max_area_growth * (t.last_rect if missing else pbox).area
+    )
+    # CamShift spread onto its colour around: no size
+    if grade == Grade.NONE and found is not None and grown:
         found = BBox.from_center(found.cx, found.cy, t.last_rect.w, t.last_rect.h)
         source = "camshift-position"
     outside = pbox.clip(w, h).area < 0.25 * pbox.area
-    if grade == Grade.NONE and source == "camshift" and found is not None and ccfg.max_scale_step < 1:
+    if (
+        grade == Grade.NONE
+        and source == "camshift"
+        and found is not None
+        and ccfg.max_scale_step < 1
+    ):
         found = scaled_like(found, t.last_rect, ccfg.max_scale_step)
     if grade == Grade.NONE and found is not None:
         kf = kalman.correct(prior, kalman.box_measurement(found), H, R, kcfg).state
@@ -274,7 +335,9 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
         if t.status == TargetStatus.LOST:
             events.append(Event(EventKind.REACQUIRED, f"T{t.id} re-acquired (d={d:.2f})", (t.id,)))
         elif missing:
-            events.append(Event(EventKind.OCCLUSION_END, f"T{t.id} visible again (d={d:.2f})", (t.id,)))
+            events.append(
+                Event(EventKind.OCCLUSION_END, f"T{t.id} visible again (d={d:.2f})", (t.id,))
+            )
     elif t.status == TargetStatus.LOST:  # keep coasting and searching; nothing is measured
         kf, status, source, last_rect = prior, TargetStatus.LOST, "kalman", t.last_rect
         out = BBox.from_center(pbox.cx, pbox.cy, t.last_rect.w, t.last_rect.h)
@@ -287,10 +350,16 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
         out, status, source, last_rect = sized, TargetStatus.OCCLUDED_SEVERE, "kalman", t.last_rect
         if is_lost(severe_run, ocfg):
             status, kf = TargetStatus.LOST, prior
-            events.append(Event(EventKind.LOST, f"T{t.id} lost after {severe_run} severe frames", (t.id,)))
+            events.append(
+                Event(EventKind.LOST, f"T{t.id} lost after {severe_run} severe frames", (t.id,))
+            )
     missing_run = 0 if status == TargetStatus.TRACKING else t.missing_run + 1
     if status.is_occluded and (outside or missing_run > ocfg.max_missing_frames):
-        why = "its prediction left the frame" if outside else f"{missing_run} frames without a measurement"
+        why = (
+            "its prediction left the frame"
+            if outside
+            else f"{missing_run} frames without a measurement"
+        )
         status, kf, source = TargetStatus.LOST, stop(prior), "kalman"
         out = BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
         events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
@@ -298,30 +367,74 @@ def track_target(image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: s
         kf = stop(kf)  # a lost target does not coast on out of the frame
     history = t.history
     if status == TargetStatus.TRACKING and d < 0.5 * ocfg.distance_threshold and found is not None:
-        history = (*t.history, (float(frame), found.cx, found.cy, found.w, found.h))[-ocfg.history_frames:]
+        history = (*t.history, (float(frame), found.cx, found.cy, found.w, found.h))[
+            -ocfg.history_frames :
+        ]
     if status.is_occluded and not missing:
-        events.append(Event(EventKind.OCCLUSION_START, f"T{t.id} {status} (d={d:.2f}, area={area:.0f})", (t.id,)))
+        events.append(
+            Event(
+                EventKind.OCCLUSION_START,
+                f"T{t.id} {status} (d={d:.2f}, area={area:.0f})",
+                (t.id,),
+            )
+        )
         restart = coast_start(t.history, prior, frame, ocfg.rewind_frames)
         if restart is not None:  # discard the measurements the occluder was dragging
             kf = restart
-            out = kf.box if status == TargetStatus.OCCLUDED_PARTIAL else BBox.from_center(
-                kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
+            out = (
+                kf.box
+                if status == TargetStatus.OCCLUDED_PARTIAL
+                else BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
+            )
             last_rect = out if status == TargetStatus.OCCLUDED_PARTIAL else t.last_rect
             source = "kalman-refit"
     elif status == TargetStatus.OCCLUDED_SEVERE and t.status == TargetStatus.OCCLUDED_PARTIAL:
-        events.append(Event(EventKind.OCCLUSION_START, f"T{t.id} occlusion now severe (area={area:.0f})", (t.id,)))
+        events.append(
+            Event(
+                EventKind.OCCLUSION_START,
+                f"T{t.id} occlusion now severe (area={area:.0f})",
+                (t.id,),
+            )
+        )
     if status == TargetStatus.TRACKING:
         severe_run = 0
-    conf = {TargetStatus.TRACKING: 1.0 - d, TargetStatus.OCCLUDED_PARTIAL: 0.5, TargetStatus.OCCLUDED_SEVERE: 0.25}.get(status, 0.0)
-    diag = {"d": d, "area_px2": area, "min_area_px2": min_area if min_area is not None else float("nan"),
-            "severe_run": float(severe_run)}
+    conf = {
+        TargetStatus.TRACKING: 1.0 - d,
+        TargetStatus.OCCLUDED_PARTIAL: 0.5,
+        TargetStatus.OCCLUDED_SEVERE: 0.25,
+    }.get(status, 0.0)
+    diag = {
+        "d": d,
+        "area_px2": area,
+        "min_area_px2": min_area if min_area is not None else float("nan"),
+        "severe_run": float(severe_run),
+    }
     overlays = {"prediction": pbox, "search": window}
     if found is not None:
         overlays["camshift"] = found
-    new_t = dataclasses.replace(t, kf=kf, status=status, last_rect=last_rect, reference=reference, severe_run=severe_run,
-                                history=history, missing_run=missing_run)
-    res = TargetResult(t.id, out, status, source, {}, 1.0 - d * d, "frozen:paper-fixed-model", max(conf, 0.0), (),
-                       diag, overlays)
+    new_t = dataclasses.replace(
+        t,
+        kf=kf,
+        status=status,
+        last_rect=last_rect,
+        reference=reference,
+        severe_run=severe_run,
+        history=history,
+        missing_run=missing_run,
+    )
+    res = TargetResult(
+        t.id,
+        out,
+        status,
+        source,
+        {},
+        1.0 - d * d,
+        "frozen:paper-fixed-model",
+        max(conf, 0.0),
+        (),
+        diag,
+        overlays,
+    )
     return new_t, res, events
 
 
@@ -334,5 +447,12 @@ def step(state: KCState, frames: FramePair, cfg: PipelineConfig) -> tuple[KCStat
         new.append(nt)
         results.append(r)
         events += ev
-    return (dataclasses.replace(state, targets=tuple(new)),
-            FrameResult(frames.index, tuple(results), tuple(events), {"kalman_camshift": time.perf_counter() - t0}))
+    return (
+        dataclasses.replace(state, targets=tuple(new)),
+        FrameResult(
+            frames.index,
+            tuple(results),
+            tuple(events),
+            {"kalman_camshift": time.perf_counter() - t0},
+        ),
+    )

@@ -55,8 +55,10 @@ def track_target(
     h, w = image.shape[:2]
     box = target.box
     x0, y0, x1, y1 = search_roi(box, mcfg.search_margin, w, h)
-    bins, m = appearance_bins(np.ascontiguousarray(image[y0:y1, x0:x1]), hcfg)
-    res = mean_shift_scale_search(bins, target.q, (box.cx - x0, box.cy - y0), (box.w / 2, box.h / 2), mcfg)
+    bins, _m = appearance_bins(np.ascontiguousarray(image[y0:y1, x0:x1]), hcfg)
+    res = mean_shift_scale_search(
+        bins, target.q, (box.cx - x0, box.cy - y0), (box.w / 2, box.h / 2), mcfg
+    )
     best = res.best
     if best.no_support:
         status = TargetStatus.OCCLUDED_SEVERE
@@ -79,7 +81,9 @@ def track_target(
     return new_t, result
 
 
-def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) -> tuple[MeanShiftState, FrameResult]:
+def init(
+    frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig
+) -> tuple[MeanShiftState, FrameResult]:
     channel = pick_channel(frames, "visible")
     image = getattr(frames, channel)
     bins, m = appearance_bins(image, cfg.histogram)
@@ -91,7 +95,9 @@ def init(frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig) 
     return MeanShiftState(tuple(states), channel), FrameResult(frames.index, tuple(results))
 
 
-def step(state: MeanShiftState, frames: FramePair, cfg: PipelineConfig) -> tuple[MeanShiftState, FrameResult]:
+def step(
+    state: MeanShiftState, frames: FramePair, cfg: PipelineConfig
+) -> tuple[MeanShiftState, FrameResult]:
     t0 = time.perf_counter()
     image = getattr(frames, state.channel)
     new_targets, results, events = [], [], []
@@ -99,7 +105,15 @@ def step(state: MeanShiftState, frames: FramePair, cfg: PipelineConfig) -> tuple
         nt, r = track_target(image, t, cfg)
         if nt.status != t.status:
             kind = EventKind.OCCLUSION_START if nt.status.is_occluded else EventKind.OCCLUSION_END
-            events.append(Event(kind, f"T{t.id} {nt.status} (no model colour in the window)" if nt.status.is_occluded else f"T{t.id} {nt.status}", (t.id,)))
+            events.append(
+                Event(
+                    kind,
+                    f"T{t.id} {nt.status} (no model colour in the window)"
+                    if nt.status.is_occluded
+                    else f"T{t.id} {nt.status}",
+                    (t.id,),
+                )
+            )
         new_targets.append(nt)
         results.append(r)
     dt = time.perf_counter() - t0

@@ -46,11 +46,15 @@ class CamShiftEngine:
         self.channel = channel
         self.targets: dict[int, tuple[np.ndarray, tuple[int, int, int, int], TargetStatus]] = {}
 
-    def _prob_input(self, frames: FramePair) -> tuple[np.ndarray, np.ndarray | None, list[int], list[int], list[float]]:
+    def _prob_input(
+        self, frames: FramePair
+    ) -> tuple[np.ndarray, np.ndarray | None, list[int], list[int], list[float]]:
         img = _channel_image(frames, self.channel)
         if self.channel == "visible":
             hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
-            mask = cv2.inRange(hsv, (0, self.cfg.min_saturation, self.cfg.min_value), (180, 255, 255))
+            mask = cv2.inRange(
+                hsv, (0, self.cfg.min_saturation, self.cfg.min_value), (180, 255, 255)
+            )
             return hsv, mask, [0], [self.cfg.hue_bins], [0, 180]
         return img, None, [0], [self.cfg.intensity_bins], [0, 256]
 
@@ -76,7 +80,11 @@ class CamShiftEngine:
         t0 = time.perf_counter()
         src, mask, chans, _bins, ranges = self._prob_input(frames)
         h, w = frames.shape
-        crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, self.cfg.max_iterations, self.cfg.epsilon_px)
+        crit = (
+            cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT,
+            self.cfg.max_iterations,
+            self.cfg.epsilon_px,
+        )
         out, events = [], []
         for tid, (hist, window, status) in self.targets.items():
             prob = cv2.calcBackProject([src], chans, hist, ranges, 1)
@@ -96,7 +104,11 @@ class CamShiftEngine:
                 new_status = TargetStatus.TRACKING
                 keep = BBox(*new_window).to_cv(w, h)
             if new_status != status:
-                kind = EventKind.OCCLUSION_START if new_status.is_occluded else EventKind.OCCLUSION_END
+                kind = (
+                    EventKind.OCCLUSION_START
+                    if new_status.is_occluded
+                    else EventKind.OCCLUSION_END
+                )
                 events.append(Event(kind, f"T{tid} {new_status}", (tid,)))
             self.targets[tid] = (hist, keep, new_status)
             out.append(
@@ -108,11 +120,14 @@ class CamShiftEngine:
                     confidence=0.3 if new_status.is_occluded else 1.0,
                 )
             )
-        return FrameResult(frames.index, tuple(out), tuple(events), {"camshift": time.perf_counter() - t0})
+        return FrameResult(
+            frames.index, tuple(out), tuple(events), {"camshift": time.perf_counter() - t0}
+        )
 
 
 def _factory(name: str) -> Callable[[], object] | None:
-    """Constructor of OpenCV tracker ``name`` ('MIL', 'CSRT', 'KCF'), wherever this OpenCV has it."""
+    """Constructor of OpenCV tracker ``name`` ('MIL', 'CSRT', 'KCF'), wherever this OpenCV has
+    it."""
     cls = getattr(cv2, f"Tracker{name}", None)
     if cls is not None and hasattr(cls, "create"):
         return cls.create
@@ -179,7 +194,13 @@ class OpenCVEngine:
             else:
                 box, new_status = last, TargetStatus.LOST
                 if status != TargetStatus.LOST:
-                    events.append(Event(EventKind.LOST, f"T{tid} lost ({self.kind} reported failure)", (tid,)))
+                    events.append(
+                        Event(
+                            EventKind.LOST, f"T{tid} lost ({self.kind} reported failure)", (tid,)
+                        )
+                    )
             self.trackers[tid] = (tr, box, new_status)
             out.append(TargetResult(tid, box, new_status, f"opencv-{self.kind}"))
-        return FrameResult(frames.index, tuple(out), tuple(events), {self.kind: time.perf_counter() - t0})
+        return FrameResult(
+            frames.index, tuple(out), tuple(events), {self.kind: time.perf_counter() - t0}
+        )

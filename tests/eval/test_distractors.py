@@ -28,8 +28,12 @@ def test_only_the_boxes_assigned_to_a_distractor_are_dropped():
     tracks = {1: _const([1, 0, 10, 10]), 2: _const([51, 50, 20, 10]), 3: _const([52, 50, 4, 4])}
     out = drop_distractor_matches(gt, tracks, car)
     np.testing.assert_array_equal(out[1], tracks[1])
-    assert np.isnan(out[2][[1, 2]]).all() and not np.isnan(out[2][[0, 3]]).any()  # only where the car is
-    np.testing.assert_array_equal(out[3], tracks[3])  # IoU 0.08 with the car: still a false positive
+    assert (
+        np.isnan(out[2][[1, 2]]).all() and not np.isnan(out[2][[0, 3]]).any()
+    )  # only where the car is
+    np.testing.assert_array_equal(
+        out[3], tracks[3]
+    )  # IoU 0.08 with the car: still a false positive
     assert not np.isnan(tracks[2]).any()  # the input is not modified
 
 
@@ -52,7 +56,9 @@ def test_evaluate_counts_no_false_positive_on_a_distractor():
 
 
 def _region(cx, cy):
-    return Region(BBox(cx - 2, cy - 2, 4, 4), (cx, cy), 16.0, 16, 1.0, 1.0, 1.0, np.zeros((0, 2), np.float32))
+    return Region(
+        BBox(cx - 2, cy - 2, 4, 4), (cx, cy), 16.0, 16, 1.0, 1.0, 1.0, np.zeros((0, 2), np.float32)
+    )
 
 
 def test_detection_scores_leave_out_rois_on_distractors_and_targets_they_overlap():
@@ -62,4 +68,7 @@ def test_detection_scores_leave_out_rois_on_distractors_and_targets_they_overlap
     d = Detections((_region(5, 5), _region(60, 55), _region(200, 200)), (), empty, empty)
     want, found, rois, correct = score_frame(d, boxes, [True, True], car)
     assert (want, found) == (1, 1)  # the second target is overlapped by a distractor: not isolated
-    assert (rois, correct) == (2, 1)  # the ROI on the car is not counted; the one on nothing is wrong
+    assert (rois, correct) == (
+        2,
+        1,
+    )  # the ROI on the car is not counted; the one on nothing is wrong

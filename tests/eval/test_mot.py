@@ -61,7 +61,10 @@ def test_purity_rows_sum_to_one_with_none_column():
 def test_continuation_keeps_matches_through_ambiguity():
     # a track drifting between two close targets keeps its target while IoU >= 0.5
     gt = {1: np.array([[0, 0, 10, 10]] * 2, float), 2: np.array([[4, 0, 10, 10]] * 2, float)}
-    tr = {7: np.array([[0, 0, 10, 10], [2, 0, 10, 10]], float), 8: np.array([[4, 0, 10, 10], [6, 0, 10, 10]], float)}
+    tr = {
+        7: np.array([[0, 0, 10, 10], [2, 0, 10, 10]], float),
+        8: np.array([[4, 0, 10, 10], [6, 0, 10, 10]], float),
+    }
     assert clear_mot(match_frames(gt, tr, 2))["id_switches"] == 0
 
 
@@ -81,4 +84,7 @@ def test_evaluate_multi_keys_and_id_mapping():
     out = evaluate(truth, TrackTable(tr, {}), 4)
     for k in ("mota", "motp", "idf1", "id_switches", "purity", "hota"):
         assert k in out
-    assert out["targets"]["1"]["track_id"] in (10, 20)  # ids differ: scored through the IDF1 assignment
+    assert out["targets"]["1"]["track_id"] in (
+        10,
+        20,
+    )  # ids differ: scored through the IDF1 assignment

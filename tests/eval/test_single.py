@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from pipeline.eval import evaluate
-from pipeline.eval.single import center_errors, ious, precision_curve, single_target_metrics, success_curve
+from pipeline.eval.single import (
+    center_errors,
+    ious,
+    precision_curve,
+    single_target_metrics,
+    success_curve,
+)
 from pipeline.io.results import TrackTable
 from pipeline.io.sequence import Truth
 
@@ -26,7 +32,8 @@ def test_hand_computed_fixture():
     assert m["p5"] == 0.5  # errors 0 and 5 (inclusive) of 4 frames
     assert m["p20"] == 0.75  # 20 is inclusive
     assert m["mean_error_px"] == pytest.approx((0 + 5 + 20) / 3)
-    # success: frame 0 (IoU 1) counts for t < 1; frame 1 (0.2658) for t in {0, .05, ..., .25}; t=1 never
+    # success: frame 0 (IoU 1) counts for t < 1; frame 1 (0.2658) for t in {0, .05, ..., .25}; t=1
+    # never
     assert m["auc"] == pytest.approx((20 * 1 + 6 * 1) / 4 / 21)
 
 
@@ -40,7 +47,9 @@ def _reference(pred, gt):
             errs.append(math.inf)
             ovs.append(0.0)
             continue
-        errs.append(math.dist((p[0] + p[2] / 2, p[1] + p[3] / 2), (g[0] + g[2] / 2, g[1] + g[3] / 2)))
+        errs.append(
+            math.dist((p[0] + p[2] / 2, p[1] + p[3] / 2), (g[0] + g[2] / 2, g[1] + g[3] / 2))
+        )
         iw = max(0.0, min(p[0] + p[2], g[0] + g[2]) - max(p[0], g[0]))
         ih = max(0.0, min(p[1] + p[3], g[1] + g[3]) - max(p[1], g[1]))
         inter = iw * ih
@@ -52,7 +61,14 @@ def _reference(pred, gt):
 
 def test_random_against_reference():
     rng = np.random.default_rng(3)
-    gt = np.column_stack([rng.uniform(0, 200, 300), rng.uniform(0, 200, 300), rng.uniform(10, 60, 300), rng.uniform(10, 60, 300)])
+    gt = np.column_stack(
+        [
+            rng.uniform(0, 200, 300),
+            rng.uniform(0, 200, 300),
+            rng.uniform(10, 60, 300),
+            rng.uniform(10, 60, 300),
+        ]
+    )
     pred = gt + rng.normal(0, 12, gt.shape)
     pred[:, 2:] = np.abs(pred[:, 2:]) + 1
     gt[::17] = np.nan

@@ -27,8 +27,13 @@ def test_init_file_plain_and_mot(seq, tmp_path):
     f = tmp_path / "init.txt"
     f.write_text("1,2,10,12\n3,4,5,6\n")
     assert [x.box for x in resolve_init(seq, None, f)] == [BBox(1, 2, 10, 12), BBox(3, 4, 5, 6)]
-    f.write_text("1,5,2,3,10,12,1,-1,-1,-1\n2,5,3,2,10,12,1,-1,-1,-1\n1,9,21,21,5,5,1,-1,-1,-1\n")  # MOT rows: 1-based
-    assert [(x.id, x.box) for x in resolve_init(seq, None, f)] == [(5, BBox(1, 2, 10, 12)), (9, BBox(20, 20, 5, 5))]
+    f.write_text(
+        "1,5,2,3,10,12,1,-1,-1,-1\n2,5,3,2,10,12,1,-1,-1,-1\n1,9,21,21,5,5,1,-1,-1,-1\n"
+    )  # MOT rows: 1-based
+    assert [(x.id, x.box) for x in resolve_init(seq, None, f)] == [
+        (5, BBox(1, 2, 10, 12)),
+        (9, BBox(20, 20, 5, 5)),
+    ]
 
 
 def test_truth_is_the_fallback(seq):
@@ -50,5 +55,5 @@ def test_no_truth_no_init_is_a_clear_error(tmp_path):
     root = tmp_path / "s"
     write_frames(root / "visible", 2)
     write_frames(root / "infrared", 2, color=False)
-    with pytest.raises(InputError, match="no initial target .* give --init"):
+    with pytest.raises(InputError, match=r"no initial target .* give --init"):
         resolve_init(open_sequence(root))

@@ -35,7 +35,9 @@ def _gtot(root):
 def _vot_rgbt(root):
     write_frames(root / "color", N)
     write_frames(root / "ir", N, color=False)
-    lines = [f"{10 + i},10,{20 + i},10,{20 + i},20,{10 + i},20" for i in range(N)]  # 8-value polygons
+    lines = [
+        f"{10 + i},10,{20 + i},10,{20 + i},20,{10 + i},20" for i in range(N)
+    ]  # 8-value polygons
     (root / "groundtruth.txt").write_text("\n".join(lines) + "\n")
     return root
 
@@ -72,7 +74,9 @@ def _mot(root):
 def _video(root):
     root.mkdir(parents=True, exist_ok=True)
     for name, color in (("visible", True), ("infrared", False)):
-        vw = cv2.VideoWriter(str(root / f"{name}.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48), True)
+        vw = cv2.VideoWriter(
+            str(root / f"{name}.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48), True
+        )
         rng = np.random.default_rng(0)
         for i in range(N):
             img = rng.integers(40, 80, (48, 64, 3), dtype=np.uint8)
@@ -159,8 +163,12 @@ def test_16bit_ir_is_normalized_and_raw_kept(tmp_path):
     f = seq.frame(1)
     assert f.infrared_raw.dtype == np.uint16 and f.infrared.dtype == np.uint8
     assert seq.ir_norm.kind == "percentile"
-    assert f.infrared[12, 12] == 255 and f.infrared[40, 50] < 60  # hot square saturates, background stays dark
-    assert f.infrared_encoded is None  # 16-bit PNG is not passed through; the sink encodes the 8-bit frame
+    assert (
+        f.infrared[12, 12] == 255 and f.infrared[40, 50] < 60
+    )  # hot square saturates, background stays dark
+    assert (
+        f.infrared_encoded is None
+    )  # 16-bit PNG is not passed through; the sink encodes the 8-bit frame
 
 
 def test_gt_txt_takes_precedence(tmp_path):
@@ -179,7 +187,9 @@ def test_missing_folder(tmp_path):
 
 def test_unrecognised_layout_names_the_layouts(tmp_path):
     (tmp_path / "s" / "frames_here").mkdir(parents=True)
-    with pytest.raises(InputError, match=r"unrecognised sequence layout .*looked for: rgbt234.*gtot.*otb"):
+    with pytest.raises(
+        InputError, match=r"unrecognised sequence layout .*looked for: rgbt234.*gtot.*otb"
+    ):
         open_sequence(tmp_path / "s")
 
 
@@ -194,7 +204,13 @@ def test_frame_count_mismatch_names_both(tmp_path):
     root = tmp_path / "s"
     write_frames(root / "visible", 5)
     write_frames(root / "infrared", 4, color=False)
-    with pytest.raises(InputError, match=r"different frame counts: 5 visible frames in .*visible vs 4 infrared frames in .*infrared"):
+    with pytest.raises(
+        InputError,
+        match=(
+            r"different frame counts: 5 visible frames in .*visible vs 4 infrared frames in "
+            r".*infrared"
+        ),
+    ):
         open_sequence(root)
 
 
@@ -203,11 +219,16 @@ def test_frame_size_mismatch_and_align_resize(tmp_path):
     write_frames(root / "visible", 3, size=(64, 48))
     write_frames(root / "infrared", 3, size=(32, 24), color=False)
     (root / "infrared.txt").write_text("5,5,5,5\n5,5,5,5\n5,5,5,5\n")
-    with pytest.raises(InputError, match=r"different frame sizes: visible 64x48 .* vs infrared 32x24 .*--align resize"):
+    with pytest.raises(
+        InputError,
+        match=r"different frame sizes: visible 64x48 .* vs infrared 32x24 .*--align resize",
+    ):
         open_sequence(root)
     seq = open_sequence(root, align="resize")
     assert seq.frame(1).infrared.shape == (48, 64)
-    np.testing.assert_allclose(seq.truth.boxes["infrared"][1][0], [10, 10, 10, 10])  # truth scaled too
+    np.testing.assert_allclose(
+        seq.truth.boxes["infrared"][1][0], [10, 10, 10, 10]
+    )  # truth scaled too
 
 
 def test_unreadable_frame_reported_at_its_frame(tmp_path):
@@ -263,7 +284,11 @@ def test_ir_folder_alone_is_read_by_the_layout_whose_truth_is_there(tmp_path):
 
 def test_vtuav_bus1_reads_its_boxes_every_tenth_frame(realdata):
     seq = open_sequence(realdata / "vtuav-bus1")
-    assert seq.layout == "vtuav" and seq.channels == ("visible", "infrared") and (seq.width, seq.height) == (1920, 1080)
+    assert (
+        seq.layout == "vtuav"
+        and seq.channels == ("visible", "infrared")
+        and (seq.width, seq.height) == (1920, 1080)
+    )
     vis, ir = seq.truth.boxes["visible"][1], seq.truth.boxes["infrared"][1]
     annotated = np.nonzero(~np.isnan(vis[:, 0]))[0] + 1
     assert annotated.tolist() == list(range(1, 102, 10))

@@ -1,4 +1,5 @@
-"""The correlation-filter appearance cue: features, planted shifts and scales recovered, PSR, channels, update."""
+"""The correlation-filter appearance cue: features, planted shifts and scales recovered, PSR,
+channels, update."""
 
 from __future__ import annotations
 
@@ -40,16 +41,21 @@ def test_a_planted_shift_is_found_in_one_detection(textured, dx, dy):
     assert d.psr > 20
 
 
-@pytest.mark.parametrize("dx, dy, s", [(0.0, 0.0, 1.06), (3.4, -2.2, 1.06), (-6.0, 4.0, 0.95), (2.0, 2.0, 0.92)])
+@pytest.mark.parametrize(
+    "dx, dy, s", [(0.0, 0.0, 1.06), (3.4, -2.2, 1.06), (-6.0, 4.0, 0.95), (2.0, 2.0, 0.92)]
+)
 def test_a_planted_shift_and_scale_are_recovered(textured, dx, dy, s):
-    """As the tracker does over frames: each detection starts where the previous one ended, at its size."""
+    """As the tracker does over frames: each detection starts where the previous one ended, at its
+    size."""
     vis, ir = textured
     cfg = A.AppearanceConfig()
     model = A.train(vis, ir, BBox.from_center(*CENTRE, 40, 60), cfg)
     v2, i2 = warp(vis, dx, dy, s), warp(ir, dx, dy, s)
     center, size = CENTRE, (40.0, 60.0)
     first = A.detect(model, v2, i2, center, cfg, size=size)
-    assert (first.scale_factor - 1.0) / (s - 1.0) >= 0.15  # the first detection already moves towards it
+    assert (first.scale_factor - 1.0) / (
+        s - 1.0
+    ) >= 0.15  # the first detection already moves towards it
     for _ in range(3):
         d = A.detect(model, v2, i2, center, cfg, size=size)
         center, size = d.center, d.size
@@ -87,12 +93,28 @@ def test_channels_follow_the_frames_present(textured):
     vis, ir = textured
     cfg = A.AppearanceConfig()
     box = BBox.from_center(*CENTRE, 40, 60)
-    assert A.features(vis[:64, :32], None, cfg).shape == (16, 8, len(A.channel_names(cfg, True, False)))
-    assert A.features(None, ir[:64, :32], cfg).shape == (16, 8, len(A.channel_names(cfg, False, True)))
-    assert A.channel_names(cfg, True, True) == A.channel_names(cfg, True, False) + A.channel_names(cfg, False, True)
+    assert A.features(vis[:64, :32], None, cfg).shape == (
+        16,
+        8,
+        len(A.channel_names(cfg, True, False)),
+    )
+    assert A.features(None, ir[:64, :32], cfg).shape == (
+        16,
+        8,
+        len(A.channel_names(cfg, False, True)),
+    )
+    assert A.channel_names(cfg, True, True) == A.channel_names(cfg, True, False) + A.channel_names(
+        cfg, False, True
+    )
     for v, i in ((vis, None), (None, ir)):
         m = A.train(v, i, box, cfg)
-        d = A.detect(m, None if v is None else warp(v, 2, 1, 1), None if i is None else warp(i, 2, 1, 1), CENTRE, cfg)
+        d = A.detect(
+            m,
+            None if v is None else warp(v, 2, 1, 1),
+            None if i is None else warp(i, 2, 1, 1),
+            CENTRE,
+            cfg,
+        )
         assert d.center == pytest.approx((CENTRE[0] + 2, CENTRE[1] + 1), abs=1.0)
         assert np.isnan(d.support[1 if v is not None else 0])
     m = A.train(vis, None, box, cfg)
@@ -116,7 +138,9 @@ def test_update_blends_at_the_rate_and_keeps_the_templates(textured):
     m = A.train(vis, ir, box, cfg)
     same = A.update(m, vis, ir, box, cfg, rate=0.0, scale_rate=0.0)
     assert same is m
-    wide = BBox.from_center(*CENTRE, 60, 60)  # another aspect: learned on the model's own templates
+    wide = BBox.from_center(
+        *CENTRE, 60, 60
+    )  # another aspect: learned on the model's own templates
     u = A.update(m, vis, ir, wide, cfg, rate=0.5)
     assert u.num.shape == m.num.shape and u.s_num.shape == m.s_num.shape and u.frames == 2
     new = A.train(vis, ir, wide, cfg, like=m)
@@ -124,7 +148,14 @@ def test_update_blends_at_the_rate_and_keeps_the_templates(textured):
 
 
 def test_bad_configs_are_rejected():
-    for kw in ({"cell_px": 1}, {"padding": 9}, {"scale_count": 4}, {"learning_rate": 2}, {"lambda_reg": 0},
-               {"colour_weight": -1}, {"intensity_clip": -1}):
+    for kw in (
+        {"cell_px": 1},
+        {"padding": 9},
+        {"scale_count": 4},
+        {"learning_rate": 2},
+        {"lambda_reg": 0},
+        {"colour_weight": -1},
+        {"intensity_clip": -1},
+    ):
         with pytest.raises(ValueError, match="appearance"):
             A.AppearanceConfig(**kw)

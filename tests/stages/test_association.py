@@ -7,7 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.stages.association import AssociationConfig, hungarian, padded_cost, state_log_likelihood
+from pipeline.stages.association import (
+    AssociationConfig,
+    hungarian,
+    padded_cost,
+    state_log_likelihood,
+)
 
 
 def test_empty_sides():
@@ -25,12 +30,23 @@ def test_global_optimum_not_greedy_and_dummies():
     assert sorted(a.pairs) == [(0, 1), (1, 0)] and a.cost == pytest.approx(3.5)
     # a pair dearer than "missed + new" is split into a miss and a birth
     a = hungarian(np.array([[30.0]]), np.array([2.0]), np.array([9.0]))
-    assert a.pairs == () and a.unmatched_tracks == (0,) and a.unmatched_detections == (0,) and a.cost == 11.0
+    assert (
+        a.pairs == ()
+        and a.unmatched_tracks == (0,)
+        and a.unmatched_detections == (0,)
+        and a.cost == 11.0
+    )
     # impossible (gated out) pairs never assign
     a = hungarian(np.array([[np.inf, 1.0], [np.inf, 2.0]]), np.full(2, 3.0), np.full(2, 4.0))
     assert a.pairs == ((0, 1),) and a.unmatched_tracks == (1,) and a.unmatched_detections == (0,)
     big = padded_cost(np.array([[1.0, 2.0]]), np.array([3.0]), np.array([4.0, 5.0]))
-    assert big.shape == (3, 3) and big[0, 2] == 3.0 and big[1, 0] == 4.0 and big[2, 1] == 5.0 and big[1, 1] > 1e8
+    assert (
+        big.shape == (3, 3)
+        and big[0, 2] == 3.0
+        and big[1, 0] == 4.0
+        and big[2, 1] == 5.0
+        and big[1, 1] > 1e8
+    )
     assert (big[1:, 2:] == 0).all()
 
 

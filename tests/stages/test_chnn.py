@@ -8,22 +8,40 @@ import pytest
 
 from pipeline.stages import kalman
 from pipeline.stages.association import get_associator, hungarian
-from pipeline.stages.chnn import BIG, chnn, chnn_associator, cost_matrix, energy, hungarian_reference
+from pipeline.stages.chnn import (
+    BIG,
+    chnn,
+    chnn_associator,
+    cost_matrix,
+    energy,
+    hungarian_reference,
+)
 
 
 def test_cost_matrix_layout():
     d = cost_matrix(np.array([[0.5, 4.0], [1.0, 2.0]]), gate_radius=3.0)
     assert d.shape == (4, 2)
     assert d[0, 0] == 3.0 and d[1, 1] == 3.0 and d[0, 1] == BIG and d[1, 0] == BIG  # pseudo rows
-    assert d[2, 0] == 0.5 and d[3, 0] == BIG and d[2, 1] == 1.0 and d[3, 1] == 2.0  # gated measurement rows
+    assert (
+        d[2, 0] == 0.5 and d[3, 0] == BIG and d[2, 1] == 1.0 and d[3, 1] == 2.0
+    )  # gated measurement rows
 
 
-@pytest.mark.parametrize("distance, expected", [
-    (np.array([[0.2, 2.5, 2.9], [2.6, 0.4, 2.8]]), [2, 3]),         # each its own, the third is clutter
-    (np.array([[0.2, 5.0], [0.3, 5.0]]), [2, 1]),                   # both want m0: target 1 coasts
-    (np.array([[4.0, 5.0], [6.0, 7.0]]), [0, 1]),                   # nothing in the gates: both coast
-    (np.array([[0.3, 2.0, 9.0], [9.0, 0.4, 2.2], [9.0, 9.0, 0.1]]), [3, 4, 5]),  # three targets, a chain
-])
+@pytest.mark.parametrize(
+    "distance, expected",
+    [
+        (
+            np.array([[0.2, 2.5, 2.9], [2.6, 0.4, 2.8]]),
+            [2, 3],
+        ),  # each its own, the third is clutter
+        (np.array([[0.2, 5.0], [0.3, 5.0]]), [2, 1]),  # both want m0: target 1 coasts
+        (np.array([[4.0, 5.0], [6.0, 7.0]]), [0, 1]),  # nothing in the gates: both coast
+        (
+            np.array([[0.3, 2.0, 9.0], [9.0, 0.4, 2.2], [9.0, 9.0, 0.1]]),
+            [3, 4, 5],
+        ),  # three targets, a chain
+    ],
+)
 def test_chnn_is_one_to_one_and_equals_hungarian_on_clear_cases(distance, expected):
     d = cost_matrix(distance, 3.03)
     res = chnn(d, A=1.0, B=3.03 + 1.0, init="pseudo")
@@ -43,7 +61,10 @@ def test_a_local_minimum_is_possible_and_measured():
     assert list(ref) == [3, 2] and best == pytest.approx(2.15)
     mine = float(d[res.rows, [0, 1]].sum())
     assert list(res.rows) == [2, 3] and mine == pytest.approx(3.9)  # stuck: 1.0 + 2.9
-    assert list(chnn(d, A=1.0, B=4.03, init="nearest").rows) == [3, 2]  # from nearest neighbours it gets there
+    assert list(chnn(d, A=1.0, B=4.03, init="nearest").rows) == [
+        3,
+        2,
+    ]  # from nearest neighbours it gets there
 
 
 def test_energy_never_increases():
@@ -66,14 +87,20 @@ def test_associator_interface_matches_hungarian_and_reports_the_gap():
     miss, new = np.full(2, 2.3), np.full(3, 9.2)
     a = chnn_associator(cost, miss, new)
     h = hungarian(cost, miss, new)
-    assert sorted(a.pairs) == sorted(h.pairs) == [(0, 0), (1, 1)] and a.cost == pytest.approx(h.cost)
+    assert sorted(a.pairs) == sorted(h.pairs) == [(0, 0), (1, 1)] and a.cost == pytest.approx(
+        h.cost
+    )
     assert a.details["gap_to_optimum"] == pytest.approx(0.0) and a.details["sweeps"] >= 1
     assert get_associator("chnn") is chnn_associator
-    assert chnn_associator(np.zeros((0, 2)), np.zeros(0), np.full(2, 1.0)).unmatched_detections == (0, 1)
+    assert chnn_associator(
+        np.zeros((0, 2)), np.zeros(0), np.full(2, 1.0)
+    ).unmatched_detections == (0, 1)
 
 
 def test_adaptive_step_inflates_p_exactly_by_eq25():
-    kcfg = kalman.KalmanConfig(model="constant_velocity", maneuver_adaptive=True, maneuver_sigma=2.0)
+    kcfg = kalman.KalmanConfig(
+        model="constant_velocity", maneuver_adaptive=True, maneuver_sigma=2.0
+    )
     H, R = kalman.measurement_model(kcfg)
     P = np.diag([9.0, 16.0, 4.0, 4.0, 1.0, 1.0, 1.0, 1.0])
     prior = kalman.GaussianState(np.array([100.0, 50.0, 20.0, 40.0, 0, 0, 0, 0]), P)
@@ -91,7 +118,9 @@ def test_adaptive_step_inflates_p_exactly_by_eq25():
     # inside D sigma: no inflation
     calm = np.array([101.0, 50.5, 20.0, 40.0])
     assert kalman.maneuver_factor(prior, calm, H, R, 2.0) < 1
-    np.testing.assert_allclose(kalman.correct(prior, calm, H, R, kcfg).state.P, kalman.update(prior, calm, H, R).state.P)
+    np.testing.assert_allclose(
+        kalman.correct(prior, calm, H, R, kcfg).state.P, kalman.update(prior, calm, H, R).state.P
+    )
     # off by default
     off = kalman.correct(prior, z, H, R, kalman.KalmanConfig(model="constant_velocity"))
     np.testing.assert_allclose(off.state.P, kalman.update(prior, z, H, R).state.P)

@@ -1,4 +1,5 @@
-"""STDM detection: the map against a slow reference, segmentation, ROI features and discrimination."""
+"""STDM detection: the map against a slow reference, segmentation, ROI features and
+discrimination."""
 
 from __future__ import annotations
 
@@ -27,7 +28,9 @@ def test_stdm_matches_the_slow_reference():
     for w in (3, 7):
         ref = ndimage.generic_filter(img.astype(np.float64), np.std, size=w, mode="reflect")
         np.testing.assert_allclose(stdm(img, w), ref, atol=1e-3)
-    deep = (rng.normal(8000, 3, (30, 30))).astype(np.uint16)  # 14-bit IR, tiny variance: float64 path, never negative
+    deep = (rng.normal(8000, 3, (30, 30))).astype(
+        np.uint16
+    )  # 14-bit IR, tiny variance: float64 path, never negative
     ref = ndimage.generic_filter(deep.astype(np.float64), np.std, size=5, mode="reflect")
     out = stdm(deep, 5)
     assert out.dtype == np.float64 and out.min() >= 0
@@ -43,11 +46,13 @@ def test_flat_frame_has_zero_deviation_and_no_detection():
 
 def shapes() -> np.ndarray:
     m = np.zeros((200, 300), np.uint8)
-    m[20:80, 20:45] = 1                                   # a person-like block: P ~ 166
-    cv2.circle(m, (150, 50), 20, 1, -1)                   # a disk: C2 ~ 1
-    m[150:156, 30:180] = 1                                # a long thin bar: elongated
-    m[100:106, 250:256] = 1                               # a speck: too small
-    cv2.rectangle(m, (200, 120), (280, 190), 1, 2)        # an outline ring: its outer contour holds it all
+    m[20:80, 20:45] = 1  # a person-like block: P ~ 166
+    cv2.circle(m, (150, 50), 20, 1, -1)  # a disk: C2 ~ 1
+    m[150:156, 30:180] = 1  # a long thin bar: elongated
+    m[100:106, 250:256] = 1  # a speck: too small
+    cv2.rectangle(
+        m, (200, 120), (280, 190), 1, 2
+    )  # an outline ring: its outer contour holds it all
     return m
 
 
@@ -55,11 +60,15 @@ def test_region_features_on_hand_built_shapes():
     regs = {(int(r.box.x), int(r.box.y)): r for r in regions(shapes())}
     block = regs[(20, 20)]
     assert block.area_px == 60 * 25 and block.box.as_tuple() == (20.0, 20.0, 25.0, 60.0)
-    assert block.perimeter_px == pytest.approx(2 * (59 + 24), abs=0.5)  # the polygon through pixel centres
+    assert block.perimeter_px == pytest.approx(
+        2 * (59 + 24), abs=0.5
+    )  # the polygon through pixel centres
     assert block.aspect == pytest.approx(59 / 24, rel=0.05)
     assert block.centroid == pytest.approx((32.5, 50.0), abs=0.01)
     disk = regs[(130, 30)]
-    assert disk.c2 == pytest.approx(1.0, abs=0.15) and disk.c1 == pytest.approx(disk.perimeter_px / disk.area_px)
+    assert disk.c2 == pytest.approx(1.0, abs=0.15) and disk.c1 == pytest.approx(
+        disk.perimeter_px / disk.area_px
+    )
     assert regs[(30, 150)].aspect > 20
 
 
@@ -69,7 +78,9 @@ def test_discrimination_keeps_compact_targets_and_says_why_others_go():
     kept = sorted((int(r.box.x), int(r.box.y)) for r in ok)
     assert kept == [(20, 20), (130, 30), (199, 119)]
     ring = next(r for r in ok if int(r.box.x) == 199)
-    assert abs(ring.area_px - 83 * 73) <= 8  # the outer contour's inside (cv2.rectangle rounds the corners)
+    assert (
+        abs(ring.area_px - 83 * 73) <= 8
+    )  # the outer contour's inside (cv2.rectangle rounds the corners)
     reasons = {(int(r.box.x), int(r.box.y)): r.reason for r in bad}
     assert reasons == {(30, 150): "elongated", (250, 100): "too-small"}
     ok, bad = discriminate(regions(shapes()), DetectionConfig(perimeter_px=(60.0, 250.0)))
@@ -89,7 +100,7 @@ def test_detects_warm_targets_on_a_textured_background():
     img = bg.copy()
     truths = [(40, 90, 22, 56), (200, 60, 26, 60)]
     for x, y, w, h in truths:
-        img[y:y + h, x:x + w] += 70
+        img[y : y + h, x : x + w] += 70
     img = cv2.GaussianBlur(np.clip(img, 0, 255), (0, 0), 1.0).astype(np.uint8)
     for method in ("stdm", "foreground"):
         cfg = DetectionConfig(method=method, perimeter_px=(90.0, 600.0))
@@ -98,27 +109,35 @@ def test_detects_warm_targets_on_a_textured_background():
         for (x, y, w, h), r in zip(truths, sorted(d.regions, key=lambda r: r.box.x), strict=True):
             assert r.centroid == pytest.approx((x + w / 2, y + h / 2), abs=2.0)
             assert abs(r.box.w - w) <= 6 and abs(r.box.h - h) <= 6
-    assert segment(detect(img, DetectionConfig(method="stdm")).std_map, DetectionConfig()).sum() > 0
+    assert (
+        segment(detect(img, DetectionConfig(method="stdm")).std_map, DetectionConfig()).sum() > 0
+    )
 
 
 def road_scene(rng: np.random.Generator, person_x: float) -> np.ndarray:
-    """A grey IR ground with a warmer road band (rows 100-140) and a cold building block: edges of the scene's
-    own; a warm person (22 x 56 px, +45 grey levels) standing on the band's upper edge at ``person_x``."""
-    img = cv2.GaussianBlur(rng.normal(90, 10, (240, 320)), (0, 0), 4) + rng.normal(0, 2, (240, 320))
+    """A grey IR ground with a warmer road band (rows 100-140) and a cold building block: edges of
+    the scene's own; a warm person (22 x 56 px, +45 grey levels) standing on the band's upper edge
+    at ``person_x``."""
+    img = cv2.GaussianBlur(rng.normal(90, 10, (240, 320)), (0, 0), 4) + rng.normal(
+        0, 2, (240, 320)
+    )
     img[100:140] += 25
     img[0:50, 60:200] -= 40
     x, y = int(person_x), 70
-    img[y:y + 56, x:x + 22] += 45
+    img[y : y + 56, x : x + 22] += 45
     return np.clip(cv2.GaussianBlur(img, (0, 0), 1.0), 0, 255).astype(np.uint8)
 
 
 def test_a_person_on_the_edge_of_a_road_band_is_one_region_and_the_band_is_none():
-    """The STDM of the seed joins the person to the band's edges (a too-large or elongated region, dropped);
-    the foreground against the background keeps the person and not the scene's own edges."""
+    """The STDM of the seed joins the person to the band's edges (a too-large or elongated region,
+    dropped); the foreground against the background keeps the person and not the scene's own edges.
+    """
     rng = np.random.default_rng(3)
     frames = [road_scene(rng, 60 + 2 * k) for k in range(30)]
     stdm_found = detect(frames[-1], DetectionConfig(method="stdm"))
-    assert not any(abs(r.centroid[0] - 129) < 6 and abs(r.centroid[1] - 98) < 6 for r in stdm_found.regions)
+    assert not any(
+        abs(r.centroid[0] - 129) < 6 and abs(r.centroid[1] - 98) < 6 for r in stdm_found.regions
+    )
     bg = None
     for f in frames:
         d = detect(f, DetectionConfig(), bg)
@@ -136,8 +155,10 @@ def test_a_still_camera_background_absorbs_static_structure_and_not_a_moving_tar
     bg = None
     for k in range(80):
         img = static + rng.normal(0, 2, static.shape)
-        img[60:90, 60 + k // 2:75 + k // 2] += 40  # a person walking slowly
-        d = detect(np.clip(img, 0, 255).astype(np.uint8), DetectionConfig(perimeter_px=(30.0, 400.0)), bg)
+        img[60:90, 60 + k // 2 : 75 + k // 2] += 40  # a person walking slowly
+        d = detect(
+            np.clip(img, 0, 255).astype(np.uint8), DetectionConfig(perimeter_px=(30.0, 400.0)), bg
+        )
         bg = d.background
     centres = [r.centroid for r in d.regions]
     assert len(centres) == 1 and centres[0][0] == pytest.approx(60 + 79 // 2 + 7.5, abs=2.0)
@@ -158,7 +179,8 @@ def test_frame_shift_recovers_a_planted_translation(dx, dy):
 
 
 def test_frame_shift_is_not_pulled_by_a_large_moving_object():
-    """A car-sized warm block moved 40 px is not the camera's motion: the search stays within ``max_px``."""
+    """A car-sized warm block moved 40 px is not the camera's motion: the search stays within
+    ``max_px``."""
     rng = np.random.default_rng(6)
     ref = textured(rng)
     ref[120:200, 20:140] += 80
@@ -166,20 +188,23 @@ def test_frame_shift_is_not_pulled_by_a_large_moving_object():
     img[121:201, 21:141] -= 80  # the block, moved with the camera, then 40 px further
     img[121:201, 61:181] += 80
     assert frame_shift(ref, img, 4.0) == pytest.approx((1.0, 1.0), abs=0.35)
-    assert cv2.phaseCorrelate(ref.astype(np.float64), img.astype(np.float64))[0][0] > 30  # the global peak is the block
+    assert (
+        cv2.phaseCorrelate(ref.astype(np.float64), img.astype(np.float64))[0][0] > 30
+    )  # the global peak is the block
 
 
 def walking_frames(rng: np.random.Generator, n: int, shake: bool, contrast: float = 45.0):
-    """A textured IR ground with a warm person (22 x 56, +``contrast``) walking 2 px a frame from x = 20 and another
-    standing at x = 250 (rows 20-76) for the first 60 % of the frames, then walking left; camera shake up to 2 px."""
+    """A textured IR ground with a warm person (22 x 56, +``contrast``) walking 2 px a frame from x
+    = 20 and another standing at x = 250 (rows 20-76) for the first 60 % of the frames, then
+    walking left; camera shake up to 2 px."""
     ground = textured(rng)
     frames, boxes = [], []
     for k in range(n):
         img = ground.copy()
         x = 20 + 2 * k
-        img[100:156, x:x + 22] += contrast
+        img[100:156, x : x + 22] += contrast
         sx = 250 if k < 0.6 * n else 250 - 3 * (k - int(0.6 * n))
-        img[20:76, sx:sx + 22] += contrast
+        img[20:76, sx : sx + 22] += contrast
         jx, jy = (rng.uniform(-2, 2), rng.uniform(-2, 2)) if shake else (0.0, 0.0)
         img = shift_image(img, jx, jy) + rng.normal(0, 2, img.shape).astype(np.float32)
         frames.append(np.clip(img, 0, 255).astype(np.uint8))
@@ -194,11 +219,17 @@ def test_quantile_background_leaves_out_walking_and_lingering_targets_and_the_sh
     cfg = DetectionConfig()
     bg = quantile_background([frames[i] for i in idx], cfg)
     assert bg.static and bg.frames == 25
-    dx, dy = frame_shift(ground, frames[0].astype(np.float32), 4.0)  # the estimate lies in the first sample's frame
+    dx, dy = frame_shift(
+        ground, frames[0].astype(np.float32), 4.0
+    )  # the estimate lies in the first sample's frame
     err = np.abs(bg.estimate - shift_image(ground, dx, dy))[10:-10, 10:-10]
     assert np.median(err) < 2.0 and np.percentile(err, 99) < 8.0  # neither person left in it (+45)
-    median = quantile_background([frames[i] for i in idx], DetectionConfig(background_quantile=0.5))
-    assert float(median.estimate[45, 260] - bg.estimate[45, 260]) > 30  # the median keeps the one standing for 60 %
+    median = quantile_background(
+        [frames[i] for i in idx], DetectionConfig(background_quantile=0.5)
+    )
+    assert (
+        float(median.estimate[45, 260] - bg.estimate[45, 260]) > 30
+    )  # the median keeps the one standing for 60 %
 
 
 def test_a_sequence_background_registered_to_a_shaken_frame_finds_its_targets():
@@ -212,9 +243,12 @@ def test_a_sequence_background_registered_to_a_shaken_frame_finds_its_targets():
         d = detect(frames[k], cfg, bg)
         assert d.background is bg  # a static background is not updated
         assert len(d.regions) == 2, (k, [(r.box, r.reason) for r in (*d.regions, *d.rejected)])
-        for r, (x, y) in zip(sorted(d.regions, key=lambda r: -r.centroid[1]), boxes[k], strict=True):
+        for r, (x, y) in zip(
+            sorted(d.regions, key=lambda r: -r.centroid[1]), boxes[k], strict=True
+        ):
             assert r.centroid == pytest.approx((x + 11, y + 28), abs=2.5)
-    # a fainter pair (+15 grey levels): the shake left in the difference raises the threshold above them
+    # a fainter pair (+15 grey levels): the shake left in the difference raises the threshold above
+    # them
     _, faint, fboxes = walking_frames(np.random.default_rng(8), 100, shake=True, contrast=15.0)
     fbg = quantile_background([faint[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
     unregistered = DetectionConfig(perimeter_px=(60.0, 600.0), max_shift_px=0.0)
@@ -224,18 +258,21 @@ def test_a_sequence_background_registered_to_a_shaken_frame_finds_its_targets():
         for k in range(0, 100, 3):
             m = detect(faint[k], c, fbg).mask
             for x, y in fboxes[k]:
-                x, y = int(round(x)), int(round(y))
-                got += int(m[y + 4:y + 52, x + 3:x + 19].sum())
+                x, y = round(x), round(y)
+                got += int(m[y + 4 : y + 52, x + 3 : x + 19].sum())
                 want += 48 * 16
         return got / want
 
     assert sum(len(detect(faint[k], cfg, fbg).regions) for k in range(0, 100, 3)) == 2 * 34
-    assert covered(cfg) > 0.9 and covered(unregistered) < 0.8 * covered(cfg), (covered(cfg), covered(unregistered))
+    assert covered(cfg) > 0.9 and covered(unregistered) < 0.8 * covered(cfg), (
+        covered(cfg),
+        covered(unregistered),
+    )
 
 
 def test_touching_bodies_are_split_and_one_body_is_not():
-    """Two bodies joined by a hand give two regions at their own centres; one body with head and legs stays
-    one region (its head and legs are too thin to make a second core)."""
+    """Two bodies joined by a hand give two regions at their own centres; one body with head and
+    legs stays one region (its head and legs are too thin to make a second core)."""
     from pipeline.stages.detection import split_touching
 
     def outer(mask):
@@ -263,15 +300,15 @@ def test_touching_bodies_are_split_and_one_body_is_not():
 
 
 def test_a_distant_person_is_kept_and_noise_specks_are_not():
-    """A warm 5 x 12 px person (boundary about 30 px) on a noisy IR ground against the sequence's background: kept
-    by the default boundary range (from 24 px), dropped as too small under the range's former floor of 40; the
-    noise makes no region either way."""
+    """A warm 5 x 12 px person (boundary about 30 px) on a noisy IR ground against the sequence's
+    background: kept by the default boundary range (from 24 px), dropped as too small under the
+    range's former floor of 40; the noise makes no region either way."""
     rng = np.random.default_rng(11)
     ground = cv2.GaussianBlur(rng.normal(90, 10, (120, 160)), (0, 0), 4)
     frames = []
     for k in range(25):
         img = ground + rng.normal(0, 2, ground.shape)
-        img[50:62, 20 + 4 * k:25 + 4 * k] += 40
+        img[50:62, 20 + 4 * k : 25 + 4 * k] += 40
         frames.append(np.clip(img, 0, 255).astype(np.uint8))
     bg = quantile_background(frames, DetectionConfig())
     d = detect(frames[12], DetectionConfig(), bg)
@@ -281,10 +318,13 @@ def test_a_distant_person_is_kept_and_noise_specks_are_not():
     assert not old.regions and [r.reason for r in old.rejected] == ["too-small"]
 
 
-def cold_person_frames(n: int = 25, light_at: int | None = 12) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """(IR, visible BGR) frames: a 10 x 24 px person in a red coat walking right 5 px a frame from x = 10 on grey
-    ground, only 4 grey levels warmer than the ground in the IR (under the IR foreground's threshold); on frame
-    ``light_at`` (0-based) a patch of the visible ground brightens with no IR change."""
+def cold_person_frames(
+    n: int = 25, light_at: int | None = 12
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """(IR, visible BGR) frames: a 10 x 24 px person in a red coat walking right 5 px a frame from
+    x = 10 on grey ground, only 4 grey levels warmer than the ground in the IR (under the IR
+    foreground's threshold); on frame ``light_at`` (0-based) a patch of the visible ground
+    brightens with no IR change."""
     rng = np.random.default_rng(4)
     ground_ir = cv2.GaussianBlur(rng.normal(90, 8, (120, 160)), (0, 0), 3)
     ground_vis = np.full((120, 160, 3), 128.0) + rng.normal(0, 3, (120, 160, 3))
@@ -293,8 +333,8 @@ def cold_person_frames(n: int = 25, light_at: int | None = 12) -> tuple[list[np.
         ir = ground_ir + rng.normal(0, 1.5, ground_ir.shape)
         vis = ground_vis + rng.normal(0, 2, ground_vis.shape)
         x = 10 + 5 * k
-        ir[50:74, x:x + 10] += 4
-        vis[50:74, x:x + 10] = (40, 40, 200)  # BGR red
+        ir[50:74, x : x + 10] += 4
+        vis[50:74, x : x + 10] = (40, 40, 200)  # BGR red
         if k == light_at:
             vis[10:30, 120:150] += 60
         irs.append(np.clip(ir, 0, 255).astype(np.uint8))
@@ -302,9 +342,9 @@ def cold_person_frames(n: int = 25, light_at: int | None = 12) -> tuple[list[np.
     return irs, viss
 
 
-def test_a_target_at_the_ground_s_temperature_is_found_in_the_visible_channel_with_weak_ir_support():
-    """The person of :func:`cold_person_frames` is a region with reason ``visible``; the patch of light, with no IR
-    support, is none; with ``visible_support_k`` 0 neither is."""
+def test_a_target_at_the_ground_s_temperature_is_found_in_visible_with_weak_ir_support():
+    """The person of :func:`cold_person_frames` is a region with reason ``visible``; the patch of
+    light, with no IR support, is none; with ``visible_support_k`` 0 neither is."""
     from pipeline.stages.detection import RegionReason
 
     irs, viss = cold_person_frames()
@@ -312,7 +352,9 @@ def test_a_target_at_the_ground_s_temperature_is_found_in_the_visible_channel_wi
     cfg = DetectionConfig()
     bg = quantile_background(irs, cfg, labs)
     d = detect(irs[12], cfg, bg, viss[12])
-    assert [r.reason for r in d.regions] == [RegionReason.VISIBLE], [(r.box, r.reason) for r in d.regions]
+    assert [r.reason for r in d.regions] == [RegionReason.VISIBLE], [
+        (r.box, r.reason) for r in d.regions
+    ]
     assert d.regions[0].centroid == pytest.approx((10 + 60 + 5, 62), abs=2.0)
     assert abs(d.regions[0].box.h - 24) <= 4
     assert not detect(irs[12], DetectionConfig(visible_support_k=0), bg, viss[12]).regions

@@ -1,4 +1,5 @@
-"""The colour extent: exact masks and histograms on tiny arrays, a planted stride recovered, leaks refused."""
+"""The colour extent: exact masks and histograms on tiny arrays, a planted stride recovered, leaks
+refused."""
 
 from __future__ import annotations
 
@@ -18,15 +19,15 @@ EXACT = ExtentConfig(trim_fraction=0.0)
 
 
 def person(shape=(80, 60), top=(20, 27), torso=(6, 12), legs_w=10, legs_h=14, background=None):
-    """bins image: a torso of bin 1 (``torso`` w x h at ``top`` = (y, x)) over spread legs of bin 2,
-    ``legs_w`` wide; the rest ``background`` (default bin 0)."""
+    """bins image: a torso of bin 1 (``torso`` w x h at ``top`` = (y, x)) over spread legs of bin
+    2, ``legs_w`` wide; the rest ``background`` (default bin 0)."""
     bins = np.zeros(shape, np.int32) if background is None else background.copy()
     y, x = top
     w, h = torso
-    bins[y:y + h, x:x + w] = 1
+    bins[y : y + h, x : x + w] = 1
     lx = x + w // 2 - legs_w // 2
-    bins[y + h:y + h + legs_h, lx:lx + 3] = 2  # left leg
-    bins[y + h:y + h + legs_h, lx + legs_w - 3:lx + legs_w] = 2  # right leg
+    bins[y + h : y + h + legs_h, lx : lx + 3] = 2  # left leg
+    bins[y + h : y + h + legs_h, lx + legs_w - 3 : lx + legs_w] = 2  # right leg
     return bins
 
 
@@ -48,7 +49,8 @@ def test_target_mask_is_the_likelihood_ratio_test():
 
 
 def test_a_planted_stride_is_recovered_from_the_standing_box():
-    """The box the target was given when it stood (6 x 26, the torso's width) grows to its spread legs."""
+    """The box the target was given when it stood (6 x 26, the torso's width) grows to its spread
+    legs."""
     bins = person()
     q = np.array([0.0, 0.6, 0.4])
     e = colour_extent(bins, q, BBox(27, 20, 6, 26), EXACT)
@@ -58,7 +60,8 @@ def test_a_planted_stride_is_recovered_from_the_standing_box():
 
 
 def test_a_target_joined_to_a_background_of_its_colour_is_refused():
-    """A wall of the shirt's colour touching the target runs out of the window: the colour cannot tell them apart."""
+    """A wall of the shirt's colour touching the target runs out of the window: the colour cannot
+    tell them apart."""
     bg = np.zeros((80, 60), np.int32)
     bg[:, 33:] = 1
     bg[0:5, 0:5] = 1  # some of the colour in the surround as well
@@ -70,9 +73,18 @@ def test_a_target_joined_to_a_background_of_its_colour_is_refused():
 def test_too_few_target_pixels_or_too_large_a_change_is_refused():
     bins = person()
     q = np.array([0.0, 0.6, 0.4])
-    assert colour_extent(bins, q, BBox(27, 20, 6, 26), ExtentConfig(trim_fraction=0.0, max_ratio=1.7)) is not None
-    assert colour_extent(bins, q, BBox(27, 20, 6, 26), ExtentConfig(trim_fraction=0.0, max_ratio=1.6)) is None
-    assert colour_extent(bins, q, BBox(27, 18, 6, 30), ExtentConfig(trim_fraction=0.0, min_fill=0.95)) is None  # 156 px of 180
+    assert (
+        colour_extent(bins, q, BBox(27, 20, 6, 26), ExtentConfig(trim_fraction=0.0, max_ratio=1.7))
+        is not None
+    )
+    assert (
+        colour_extent(bins, q, BBox(27, 20, 6, 26), ExtentConfig(trim_fraction=0.0, max_ratio=1.6))
+        is None
+    )
+    assert (
+        colour_extent(bins, q, BBox(27, 18, 6, 30), ExtentConfig(trim_fraction=0.0, min_fill=0.95))
+        is None
+    )  # 156 px of 180
     assert colour_extent(np.zeros((80, 60), np.int32), q, BBox(27, 20, 6, 26), EXACT) is None
 
 
@@ -84,8 +96,17 @@ def test_a_target_at_the_frame_border_is_measured():
     assert e is not None and (e.x, e.w, e.h) == (0.0, 8.0, 20.0)
 
 
-@pytest.mark.parametrize("name,value", [("gap_fraction", -0.1), ("likelihood_ratio", 0.5), ("window_fraction", 2.0),
-                                        ("min_fill", 1.5), ("trim_fraction", 0.3), ("max_ratio", 1.0)])
+@pytest.mark.parametrize(
+    "name,value",
+    [
+        ("gap_fraction", -0.1),
+        ("likelihood_ratio", 0.5),
+        ("window_fraction", 2.0),
+        ("min_fill", 1.5),
+        ("trim_fraction", 0.3),
+        ("max_ratio", 1.0),
+    ],
+)
 def test_declared_ranges_are_enforced(name, value):
     with pytest.raises(ValueError, match=f"extent.{name}"):
         ExtentConfig(**{name: value})

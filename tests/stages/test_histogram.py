@@ -32,26 +32,47 @@ def test_hsv_bins_exact():
     assert hsv_bin_image(bgr, CFG).max() < CFG.hsv_bins == 256
 
 
-@pytest.mark.parametrize("cfg", [CFG, HistogramConfig(hue_bins=8, saturation_bins=8, value_bins=4),
-                                 HistogramConfig(value_bins=1)])
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        CFG,
+        HistogramConfig(hue_bins=8, saturation_bins=8, value_bins=4),
+        HistogramConfig(value_bins=1),
+    ],
+)
 def test_compiled_bin_sum_equals_the_opencv_route(cfg):
-    # every 8-bit HSV triple the conversion can give, through split + three LUTs + two saturating adds
-    h, s, v = np.meshgrid(np.arange(180), np.arange(0, 256, 5), np.arange(0, 256, 5), indexing="ij")
-    bgr = cv2.cvtColor(np.stack([h, s, v], -1).reshape(180, -1, 3).astype(np.uint8), cv2.COLOR_HSV2BGR)
+    # every 8-bit HSV triple the conversion can give, through split + three LUTs + two saturating
+    # adds
+    h, s, v = np.meshgrid(
+        np.arange(180), np.arange(0, 256, 5), np.arange(0, 256, 5), indexing="ij"
+    )
+    bgr = cv2.cvtColor(
+        np.stack([h, s, v], -1).reshape(180, -1, 3).astype(np.uint8), cv2.COLOR_HSV2BGR
+    )
     hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
     lh, ls, lv = _luts(cfg)
     ch = cv2.split(hsv)
     ref = cv2.add(cv2.add(cv2.LUT(ch[0], lh), cv2.LUT(ch[1], ls)), cv2.LUT(ch[2], lv))
     np.testing.assert_array_equal(hsv_bin_image(bgr, cfg), ref)
-    np.testing.assert_array_equal(hsv_bin_image(bgr[:, 5:40], cfg), ref[:, 5:40])  # a non-contiguous crop
+    np.testing.assert_array_equal(
+        hsv_bin_image(bgr[:, 5:40], cfg), ref[:, 5:40]
+    )  # a non-contiguous crop
 
 
 def test_bright_fraction_counts_the_hsv_value():
     rng = np.random.default_rng(4)
     frame = rng.integers(0, 256, (60, 80, 3), dtype=np.uint8)
-    for y0, y1, x0, x1, v in ((0, 60, 0, 80, 40), (5, 17, 30, 41, 200), (3, 4, 3, 4, 0), (10, 30, 10, 30, 256)):
+    for y0, y1, x0, x1, v in (
+        (0, 60, 0, 80, 40),
+        (5, 17, 30, 41, 200),
+        (3, 4, 3, 4, 0),
+        (10, 30, 10, 30, 256),
+    ):
         patch = frame[y0:y1, x0:x1]
-        assert bright_fraction(patch, v) == np.count_nonzero(patch.max(axis=2) >= v) / patch[..., 0].size
+        assert (
+            bright_fraction(patch, v)
+            == np.count_nonzero(patch.max(axis=2) >= v) / patch[..., 0].size
+        )
     assert bright_fraction(np.array([[[10, 50, 5], [39, 39, 39]]], np.uint8), 40) == 0.5
     assert bright_fraction(frame[:0], 40) == 0.0
 
@@ -94,24 +115,37 @@ def test_bad_config(kw):
         HistogramConfig(**kw)
 
 
-@pytest.mark.parametrize("cx, cy, hx, hy", [(10.3, 7.8, 4.5, 6.2), (0.5, 0.5, 5.0, 3.0), (19.9, 14.2, 8.0, 9.0)])
+@pytest.mark.parametrize(
+    "cx, cy, hx, hy", [(10.3, 7.8, 4.5, 6.2), (0.5, 0.5, 5.0, 3.0), (19.9, 14.2, 8.0, 9.0)]
+)
 def test_compiled_ellipse_equals_the_window_route(cx, cy, hx, hy):
     """The compiled one-pass histogram and mean-shift sums equal kernel_window + bincount exactly,
     including windows cut by the image border."""
-    from pipeline.stages.histogram import ellipse_histogram, ellipse_model, ellipse_shift, window_histogram
+    from pipeline.stages.histogram import (
+        ellipse_histogram,
+        ellipse_model,
+        ellipse_shift,
+        window_histogram,
+    )
 
     bins = np.random.default_rng(3).integers(0, 8, (16, 20)).astype(np.int32)
     win = kernel_window(bins.shape, cx, cy, hx, hy)
     h, mass, n = ellipse_histogram(bins, cx, cy, hx, hy, 8)
-    np.testing.assert_array_equal(h, np.bincount(bins[win.rows, win.cols], weights=win.k, minlength=8))
+    np.testing.assert_array_equal(
+        h, np.bincount(bins[win.rows, win.cols], weights=win.k, minlength=8)
+    )
     assert n == win.k.size and mass == pytest.approx(win.k.sum(), rel=1e-12)
-    p, n2, frac = ellipse_model(bins, cx, cy, hx, hy, 8)
+    p, _n2, frac = ellipse_model(bins, cx, cy, hx, hy, 8)
     np.testing.assert_allclose(p, window_histogram(bins, win, 8), rtol=1e-12)
     assert frac == pytest.approx(win.mass_fraction, rel=1e-12)
-    valid = np.random.default_rng(4).random(bins.shape) < 0.7  # CamShift's mask of pixels with colour
+    valid = (
+        np.random.default_rng(4).random(bins.shape) < 0.7
+    )  # CamShift's mask of pixels with colour
     ok = valid[win.rows, win.cols]
     hv, _, nv = ellipse_histogram(bins, cx, cy, hx, hy, 8, valid)
-    np.testing.assert_array_equal(hv, np.bincount(bins[win.rows[ok], win.cols[ok]], weights=win.k[ok], minlength=8))
+    np.testing.assert_array_equal(
+        hv, np.bincount(bins[win.rows[ok], win.cols[ok]], weights=win.k[ok], minlength=8)
+    )
     assert nv == int(ok.sum())
     w = np.linspace(0.1, 1.0, 8)
     sw, sx, sy = ellipse_shift(bins, w, cx, cy, hx, hy)

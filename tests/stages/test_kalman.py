@@ -17,7 +17,13 @@ def test_constant_acceleration_matrices():
     np.testing.assert_allclose((F @ s)[:4], s[:4] + 2 * s[4:8] + 2 * s[8:12])
     # white-jerk block for x: q * [[dt^5/20, dt^4/8, dt^3/6], ...]
     dt = 2.0
-    blk = 0.5 * np.array([[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2], [dt**3 / 6, dt**2 / 2, dt]])
+    blk = 0.5 * np.array(
+        [
+            [dt**5 / 20, dt**4 / 8, dt**3 / 6],
+            [dt**4 / 8, dt**3 / 3, dt**2 / 2],
+            [dt**3 / 6, dt**2 / 2, dt],
+        ]
+    )
     np.testing.assert_allclose(Q[np.ix_([0, 4, 8], [0, 4, 8])], blk)
     np.testing.assert_allclose(Q[np.ix_([2, 6, 10], [2, 6, 10])], blk / 5)
     assert Q[0, 1] == 0 and not F.flags.writeable
@@ -26,7 +32,7 @@ def test_constant_acceleration_matrices():
 def test_constant_velocity_variant():
     cfg = kalman.KalmanConfig(model="constant_velocity", position_noise=1.0)
     F, Q = kalman.motion_model(cfg)
-    H, R = kalman.measurement_model(cfg)
+    H, _R = kalman.measurement_model(cfg)
     assert F.shape == (8, 8) and H.shape == (4, 8)
     np.testing.assert_allclose(Q[np.ix_([0, 4], [0, 4])], [[1 / 3, 1 / 2], [1 / 2, 1]])
 
@@ -52,7 +58,9 @@ def test_predict_and_update_closed_form():
     np.testing.assert_allclose(up.state.P, (np.eye(12) - K @ H) @ prior.P, atol=1e-8)
     y = up.innovation
     assert up.mahalanobis == pytest.approx(np.sqrt(y @ np.linalg.inv(S) @ y))
-    assert kalman.log_likelihood(y, S) == pytest.approx(multivariate_normal(np.zeros(4), S).logpdf(y))
+    assert kalman.log_likelihood(y, S) == pytest.approx(
+        multivariate_normal(np.zeros(4), S).logpdf(y)
+    )
 
 
 @pytest.mark.parametrize("model", ["constant_acceleration", "constant_velocity"])
@@ -115,7 +123,9 @@ def test_filters_a_constant_velocity_target():
             vel.append(s.x[4:6])
             pos_err.append(s.x[:2] - truth)
     np.testing.assert_allclose(np.mean(vel, axis=0), [3.0, -1.0], atol=0.3)
-    assert np.sqrt(np.mean(np.square(pos_err))) < 3.0  # filtered position beats the 3 px measurement noise
+    assert (
+        np.sqrt(np.mean(np.square(pos_err))) < 3.0
+    )  # filtered position beats the 3 px measurement noise
 
 
 @pytest.mark.parametrize("kw", [dict(model="singer"), dict(dt_frames=0), dict(position_std_px=-1)])

@@ -1,4 +1,5 @@
-"""DRLSE: planted shapes recovered, the fast kernel equals the numpy reference, configs validated."""
+"""DRLSE: planted shapes recovered, the fast kernel equals the numpy reference, configs
+validated."""
 
 import cv2
 import numpy as np
@@ -11,7 +12,11 @@ def _blob(h=100, w=80, cx=40.0, cy=50.0, a=14.0, b=28.0, contrast=50.0, noise=2.
     rng = np.random.default_rng(seed)
     yy, xx = np.mgrid[0:h, 0:w] + 0.5
     truth = ((xx - cx) / a) ** 2 + ((yy - cy) / b) ** 2 < 1
-    img = 95 + contrast * cv2.GaussianBlur(truth.astype(np.float32), (0, 0), 1.2) + rng.normal(0, noise, (h, w))
+    img = (
+        95
+        + contrast * cv2.GaussianBlur(truth.astype(np.float32), (0, 0), 1.2)
+        + rng.normal(0, noise, (h, w))
+    )
     return np.clip(img, 0, 255).astype(np.uint8), truth
 
 
@@ -20,32 +25,50 @@ def _iou(a, b):
 
 
 def _kernel(phi, em, cfg, n, alpha=None, stop=(0, 0, 0.0), n_refine=0):
-    """``_band_iterations`` on ``phi`` in place with ``cfg``'s weights; ``stop`` = (check_every, checks
-    back, tolerance), 0 for none. Returns its (main iterations, checks, refined)."""
+    """``_band_iterations`` on ``phi`` in place with ``cfg``'s weights; ``stop`` = (check_every,
+    checks back, tolerance), 0 for none. Returns its (main iterations, checks, refined)."""
     f32 = np.float32
     dps, de = L._luts(cfg.dirac_width)
-    return L._band_iterations(phi, em.g, em.gx, em.gy, n, f32(cfg.distance_weight), f32(cfg.length_weight),
-                              f32(cfg.area_weight if alpha is None else alpha), f32(cfg.dirac_width),
-                              f32(cfg.timestep), f32(cfg.band_px), dps, de, *stop, np.zeros(n // 5 + 4, np.int64),
-                              n_refine)
+    return L._band_iterations(
+        phi,
+        em.g,
+        em.gx,
+        em.gy,
+        n,
+        f32(cfg.distance_weight),
+        f32(cfg.length_weight),
+        f32(cfg.area_weight if alpha is None else alpha),
+        f32(cfg.dirac_width),
+        f32(cfg.timestep),
+        f32(cfg.band_px),
+        dps,
+        de,
+        *stop,
+        np.zeros(n // 5 + 4, np.int64),
+        n_refine,
+    )
 
 
 @pytest.mark.parametrize("a, b", [(14, 14), (14, 28), (22, 12)])
 def test_planted_disk_and_ellipses_recovered(a, b):
     img, truth = _blob(a=a, b=b)
     cfg = L.LevelSetConfig()
-    phi0 = L.box_step(img.shape, (40 - a * 1.35, 50 - b * 1.35, 2 * a * 1.35, 2 * b * 1.35), cfg.step_height)
+    phi0 = L.box_step(
+        img.shape, (40 - a * 1.35, 50 - b * 1.35, 2 * a * 1.35, 2 * b * 1.35), cfg.step_height
+    )
     res = L.evolve(phi0, L.edge_map(img, cfg), cfg)
     assert res.converged
     assert _iou(res.phi < 0, truth) >= 0.9
 
 
 def test_warm_start_follows_a_moved_target():
-    img, truth = _blob()
+    img, _truth = _blob()
     cfg = L.LevelSetConfig()
     first = L.evolve(L.box_step(img.shape, (21, 12, 38, 76), 2.0), L.edge_map(img, cfg), cfg)
     img2, truth2 = _blob(cx=43.0, cy=48.0, seed=1)
-    moved = cv2.warpAffine(first.phi, np.float32([[1, 0, 3], [0, 1, -2]]), (80, 100), borderMode=cv2.BORDER_REPLICATE)
+    moved = cv2.warpAffine(
+        first.phi, np.float32([[1, 0, 3], [0, 1, -2]]), (80, 100), borderMode=cv2.BORDER_REPLICATE
+    )
     res = L.evolve(moved, L.edge_map(img2, cfg), cfg, warm=True)
     assert res.iterations <= cfg.max_iterations_warm + cfg.refine_iterations
     assert _iou(res.phi < 0, truth2) >= 0.9
@@ -57,7 +80,9 @@ def test_compiled_differences_equal_opencv_sobel():
         a = rng.normal(0, 40, (h, w)).astype(np.float32)
         dx, dy = L._central_diff_fast(a)
         for got, (ox, oy) in ((dx, (1, 0)), (dy, (0, 1))):
-            ref = cv2.Sobel(a, cv2.CV_32F, ox, oy, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
+            ref = cv2.Sobel(
+                a, cv2.CV_32F, ox, oy, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE
+            )
             np.testing.assert_array_equal(got, ref)
     assert L._central_diff_fast(np.array([[0, 2, 6]], np.float32))[0].tolist() == [[1.0, 3.0, 2.0]]
 
@@ -68,7 +93,9 @@ def test_fast_kernel_equals_reference_step():
     em = L.edge_map(img, cfg)
     d_out = cv2.distanceTransform((~truth).astype(np.uint8), cv2.DIST_L2, 5)
     d_in = cv2.distanceTransform(truth.astype(np.uint8), cv2.DIST_L2, 5)
-    phi = (np.clip(d_out - d_in, -1.5, 1.5) * 0.5).astype(np.float32)  # every pixel inside the band
+    phi = (np.clip(d_out - d_in, -1.5, 1.5) * 0.5).astype(
+        np.float32
+    )  # every pixel inside the band
     ref = L.evolve_reference(phi, em, cfg, 1)
     fast = phi.copy()
     _kernel(fast, em, cfg, 1)
@@ -77,25 +104,30 @@ def test_fast_kernel_equals_reference_step():
 
 def _narrow_band_oracle(phi, em, cfg, iterations):
     """The narrow-band scheme written densely: every iteration recomputes the band everywhere and
-    takes the reference step's values on its 3x3 dilation (the array's outer ring is the Neumann copy)."""
+    takes the reference step's values on its 3x3 dilation (the array's outer ring is the Neumann
+    copy)."""
     phi = phi.astype(np.float32, copy=True)
     for _ in range(iterations):
         L._neumann(phi)
         near = np.abs(phi) < cfg.band_px
         for axis in (0, 1):
             for shift in (1, -1):
-                near |= phi * np.roll(phi, shift, axis) <= 0  # wrapped neighbours only reach the outer ring
+                near |= (
+                    phi * np.roll(phi, shift, axis) <= 0
+                )  # wrapped neighbours only reach the outer ring
         upd = cv2.dilate(near.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         upd[0, :] = upd[-1, :] = upd[:, 0] = upd[:, -1] = False
-        phi = np.where(upd, L.reference_step(phi, em, cfg, cfg.area_weight), phi).astype(np.float32)
+        phi = np.where(upd, L.reference_step(phi, em, cfg, cfg.area_weight), phi).astype(
+            np.float32
+        )
     L._neumann(phi)
     return phi
 
 
 def test_band_kernel_follows_a_moving_front_like_the_dense_band_scheme():
     # a cold start far outside the target: the front crosses ~20 px, so the band leaves every pixel
-    # it started on and the kernel's band bookkeeping (band test, dilations, scan box) is exercised;
-    # a pixel missed there would stall part of the front
+    # it started on and the kernel's band bookkeeping (band test, dilations, scan box) is
+    # exercised; a pixel missed there would stall part of the front
     img, _ = _blob()
     cfg = L.LevelSetConfig()
     em = L.edge_map(img, cfg)
@@ -107,8 +139,8 @@ def test_band_kernel_follows_a_moving_front_like_the_dense_band_scheme():
         return phi
 
     np.testing.assert_allclose(kernel(8), _narrow_band_oracle(phi0, em, cfg, 8), atol=1e-3)
-    # further on, this noisy image's DRLSE amplifies float32 rounding (LUT vs sinc) in the values, so
-    # compare the regions: ~3500 px changed sides, all but a few dozen alike
+    # further on, this noisy image's DRLSE amplifies float32 rounding (LUT vs sinc) in the values,
+    # so compare the regions: ~3500 px changed sides, all but a few dozen alike
     got, want = kernel(80) < 0, _narrow_band_oracle(phi0, em, cfg, 80) < 0
     assert ((phi0 < 0) != want).sum() > 3000
     assert (got != want).sum() <= 100
@@ -129,11 +161,14 @@ def test_refinement_in_the_same_call_equals_a_second_call_with_alpha_zero():
     assert not np.array_equal(before, two)  # the refinement moved something
     np.testing.assert_array_equal(one, two)
     # nothing inside: no refinement
-    assert _kernel(np.full(img.shape, np.float32(2.0)), em, cfg, 10, stop=rule, n_refine=7)[2] is False
+    assert (
+        _kernel(np.full(img.shape, np.float32(2.0)), em, cfg, 10, stop=rule, n_refine=7)[2]
+        is False
+    )
 
 
 def test_fast_and_reference_segment_alike():
-    img, truth = _blob()
+    img, _truth = _blob()
     cfg = L.LevelSetConfig(refine_iterations=0, stop_tolerance=1e-9, max_iterations_cold=100)
     em = L.edge_map(img, cfg)
     phi0 = L.box_step(img.shape, (21, 12, 38, 76), cfg.step_height)
@@ -146,24 +181,37 @@ def test_iteration_callback_sees_the_area():
     img, _ = _blob()
     cfg = L.LevelSetConfig()
     seen = []
-    L.evolve(L.box_step(img.shape, (21, 12, 38, 76), 2.0), L.edge_map(img, cfg), cfg, iter_callback=seen.append)
+    L.evolve(
+        L.box_step(img.shape, (21, 12, 38, 76), 2.0),
+        L.edge_map(img, cfg),
+        cfg,
+        iter_callback=seen.append,
+    )
     assert seen and all(s.iteration % cfg.check_every == 0 for s in seen) and seen[-1].area_px > 0
 
 
 def test_edge_indicator_low_on_edges_high_on_flat():
     img, truth = _blob(noise=0.0)
     em = L.edge_map(img, L.LevelSetConfig(edge_scale_auto=False))
-    edge = cv2.morphologyEx(truth.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3))).astype(bool)
-    assert em.g[edge].mean() < 0.1 and em.g[~cv2.dilate(edge.astype(np.uint8), np.ones((9, 9))).astype(bool)].min() > 0.85
+    edge = cv2.morphologyEx(truth.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3))).astype(
+        bool
+    )
+    assert (
+        em.g[edge].mean() < 0.1
+        and em.g[~cv2.dilate(edge.astype(np.uint8), np.ones((9, 9))).astype(bool)].min() > 0.85
+    )
 
 
-@pytest.mark.parametrize("kw, match", [
-    (dict(timestep=10, distance_weight=0.04), "must be < 0.25"),
-    (dict(dirac_width=0), "dirac_width"),
-    (dict(step_height=1.0), "step_height"),
-    (dict(stop_window=2, check_every=5), "stop_window"),
-    (dict(band_px=1.0), "band_px"),
-])
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(timestep=10, distance_weight=0.04), "must be < 0.25"),
+        (dict(dirac_width=0), "dirac_width"),
+        (dict(step_height=1.0), "step_height"),
+        (dict(stop_window=2, check_every=5), "stop_window"),
+        (dict(band_px=1.0), "band_px"),
+    ],
+)
 def test_bad_config(kw, match):
     with pytest.raises(ValueError, match=match):
         L.LevelSetConfig(**kw)

@@ -19,7 +19,9 @@ def _scene(cx, cy, w=24, h=40, size=(160, 120), seed=0):
     top = inside & (yy < cy)
     img[top] = (40, 40, 210)
     img[inside & ~top] = (150, 60, 30)
-    img[inside] = np.clip(img[inside].astype(int) + rng.integers(-15, 15, (inside.sum(), 3)), 0, 255)
+    img[inside] = np.clip(
+        img[inside].astype(int) + rng.integers(-15, 15, (inside.sum(), 3)), 0, 255
+    )
     return img.astype(np.uint8)
 
 
@@ -60,11 +62,20 @@ def test_iteration_callback_and_cap():
     bins, m = appearance_bins(img, cfg)
     q = kernel_histogram(bins, BBox.from_center(80, 60, 24, 40), m)
     seen = []
-    r = mean_shift(bins, q, (70.0, 55.0), (12.0, 20.0), MeanShiftConfig(max_iterations=2), iter_callback=seen.append)
+    r = mean_shift(
+        bins,
+        q,
+        (70.0, 55.0),
+        (12.0, 20.0),
+        MeanShiftConfig(max_iterations=2),
+        iter_callback=seen.append,
+    )
     assert r.iterations == 2 == len(seen) and [s.iteration for s in seen] == [1, 2]
 
 
-@pytest.mark.parametrize("kw", [dict(max_iterations=0), dict(epsilon_px=0), dict(scale_step=0.7), dict(scale_rate=2)])
+@pytest.mark.parametrize(
+    "kw", [dict(max_iterations=0), dict(epsilon_px=0), dict(scale_step=0.7), dict(scale_rate=2)]
+)
 def test_bad_config(kw):
     with pytest.raises(ValueError):
         MeanShiftConfig(**kw)

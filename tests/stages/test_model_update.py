@@ -25,21 +25,33 @@ def test_update_all_three_cases_by_hand():
     p = np.array([0.5, 0.25, 0.0, 0.25])
     cfg = ModelUpdateConfig(model_rate=0.1, rank_rule="count", rank_count=1)
     mcd = matching_contribution(p, q)  # bins 0 and 1 > 0; bins 2 and 3 are 0
-    new = np.array([
-        0.5,  # case 2: top-ranked bin (rank 1 <= k = 1) unchanged
-        mcd[1] * 0.25 + (1 - mcd[1]) * 0.125,  # case 3: MCD-weighted blend
-        0.1 * 0.0 + 0.9 * 0.375,  # case 1: absent from the candidate, fades at model_rate
-        0.1 * 0.25 + 0.9 * 0.0,  # case 1: new colour enters at model_rate
-    ])
+    new = np.array(
+        [
+            0.5,  # case 2: top-ranked bin (rank 1 <= k = 1) unchanged
+            mcd[1] * 0.25 + (1 - mcd[1]) * 0.125,  # case 3: MCD-weighted blend
+            0.1 * 0.0 + 0.9 * 0.375,  # case 1: absent from the candidate, fades at model_rate
+            0.1 * 0.25 + 0.9 * 0.0,  # case 1: new colour enters at model_rate
+        ]
+    )
     np.testing.assert_allclose(selective_update(q, p, cfg), new / new.sum())
 
 
 def test_rank_rules():
     mcd = np.array([0.5, 0.3, 0.15, 0.05, 0.0])
-    assert anchored_bins(mcd, ModelUpdateConfig(rank_rule="cumulative", rank_mass=0.8)).tolist() == [True, True, False, False, False]
-    assert anchored_bins(mcd, ModelUpdateConfig(rank_rule="cumulative", rank_mass=0.81)).tolist() == [True, True, True, False, False]
+    assert anchored_bins(
+        mcd, ModelUpdateConfig(rank_rule="cumulative", rank_mass=0.8)
+    ).tolist() == [True, True, False, False, False]
+    assert anchored_bins(
+        mcd, ModelUpdateConfig(rank_rule="cumulative", rank_mass=0.81)
+    ).tolist() == [True, True, True, False, False]
     assert anchored_bins(mcd, ModelUpdateConfig(rank_rule="count", rank_count=3)).sum() == 3
-    assert anchored_bins(mcd, ModelUpdateConfig(rank_rule="above_average")).tolist() == [True, True, False, False, False]
+    assert anchored_bins(mcd, ModelUpdateConfig(rank_rule="above_average")).tolist() == [
+        True,
+        True,
+        False,
+        False,
+        False,
+    ]
 
 
 def test_decision_gate_and_reasons():
@@ -49,10 +61,15 @@ def test_decision_gate_and_reasons():
     assert str(should_update_model(0.95, True, True, True, cfg)) == "frozen:occluded"
     assert str(should_update_model(0.95, False, False, True, cfg)) == "frozen:colour-uninformative"
     assert str(should_update_model(0.95, False, True, False, cfg)) == "frozen:no-contour"
-    assert str(should_update_model(0.95, False, True, True, ModelUpdateConfig(enabled=False))) == "frozen:disabled"
+    assert (
+        str(should_update_model(0.95, False, True, True, ModelUpdateConfig(enabled=False)))
+        == "frozen:disabled"
+    )
 
 
-@pytest.mark.parametrize("kw", [dict(model_rate=1.5), dict(rank_rule="top"), dict(rank_mass=0), dict(min_rho=2)])
+@pytest.mark.parametrize(
+    "kw", [dict(model_rate=1.5), dict(rank_rule="top"), dict(rank_mass=0), dict(min_rho=2)]
+)
 def test_bad_config(kw):
     with pytest.raises(ValueError):
         ModelUpdateConfig(**kw)

@@ -21,34 +21,69 @@ def at(cx: float, cy: float = 100.0, w: float = SIZE[0], h: float = SIZE[1]) -> 
 
 
 def evidence(**kw) -> Evidence:
-    """A tracked target whose every cue agrees at the prediction; ``kw`` changes what one cue found."""
-    base = dict(measured_last=True, missing=0, prior=PRIOR, ref_size=SIZE, colour_informative=True,
-                rho_meanshift=0.9, meanshift_box=at(101), contour_box=at(100.5), contour_ok=True, contour_reason="ok",
-                rho_contour=0.9, appearance_box=at(100.2), psr=15.0, rho_appearance=0.9, support=(10.0, 10.0),
-                last=at(98))
+    """A tracked target whose every cue agrees at the prediction; ``kw`` changes what one cue
+    found."""
+    base = dict(
+        measured_last=True,
+        missing=0,
+        prior=PRIOR,
+        ref_size=SIZE,
+        colour_informative=True,
+        rho_meanshift=0.9,
+        meanshift_box=at(101),
+        contour_box=at(100.5),
+        contour_ok=True,
+        contour_reason="ok",
+        rho_contour=0.9,
+        appearance_box=at(100.2),
+        psr=15.0,
+        rho_appearance=0.9,
+        support=(10.0, 10.0),
+        last=at(98),
+    )
     base.update(kw)
     return Evidence(**base)
 
 
 def missing(frames: int = 5, **kw) -> Evidence:
     """A target hidden for ``frames`` frames (its prediction at PRIOR)."""
-    nothing = dict(meanshift_box=None, rho_meanshift=NAN, contour_box=None, contour_ok=False,
-                   contour_reason="no-component", rho_contour=NAN, appearance_box=None, psr=NAN, rho_appearance=NAN)
+    nothing = dict(
+        meanshift_box=None,
+        rho_meanshift=NAN,
+        contour_box=None,
+        contour_ok=False,
+        contour_reason="no-component",
+        rho_contour=NAN,
+        appearance_box=None,
+        psr=NAN,
+        rho_appearance=NAN,
+    )
     nothing.update(kw)
     return evidence(measured_last=False, missing=frames, **nothing)
 
 
-# ------------------------------------------------------------------------------------------------ tracked
+# ----------------------------------------------------------------------------------------- tracked
+
 
 def test_contour_confirmed_by_the_filter():
     d = decide(evidence(), CFG)
-    assert (d.case, d.status, d.why, d.stage) == (Case.CONTOUR, TargetStatus.TRACKING, "contour-and-appearance", "levelset")
+    assert (d.case, d.status, d.why, d.stage) == (
+        Case.CONTOUR,
+        TargetStatus.TRACKING,
+        "contour-and-appearance",
+        "levelset",
+    )
     assert d.box == at(100.5) and d.contour_scale and d.learn and d.noise == 1.0
 
 
 def test_appearance_decides_where_the_contour_fails():
     d = decide(evidence(contour_ok=False, contour_reason="leak", contour_box=at(110, w=60)), CFG)
-    assert (d.case, d.status, d.why, d.stage) == (Case.APPEARANCE, TargetStatus.TRACKING, "appearance-contour-leak", "appearance")
+    assert (d.case, d.status, d.why, d.stage) == (
+        Case.APPEARANCE,
+        TargetStatus.TRACKING,
+        "appearance-contour-leak",
+        "appearance",
+    )
     assert d.box == at(100.2) and not d.contour_scale and d.learn
 
 
@@ -64,9 +99,14 @@ def test_a_cut_contour_with_the_filter_is_a_partial_occlusion():
 
 
 def test_a_sharp_contour_carries_the_target_through_a_colour_change():
-    """A shadow: the colour at the contour falls under colour_min_rho, no colour matches better elsewhere."""
+    """A shadow: the colour at the contour falls under colour_min_rho, no colour matches better
+    elsewhere."""
     d = decide(evidence(rho_contour=0.4, rho_meanshift=0.45, rho_appearance=0.4, psr=4.0), CFG)
-    assert (d.case, d.status, d.why) == (Case.CONTOUR, TargetStatus.TRACKING, "contour-colour-changed")
+    assert (d.case, d.status, d.why) == (
+        Case.CONTOUR,
+        TargetStatus.TRACKING,
+        "contour-colour-changed",
+    )
     assert not d.learn
 
 
@@ -82,19 +122,27 @@ def test_strong_colour_elsewhere_overrides_an_unconfirmed_contour():
 
 
 def test_colour_carries_the_target_through_ir_clutter():
-    d = decide(evidence(psr=3.0, contour_ok=False, contour_reason="too-large", rho_meanshift=0.9), CFG)
+    d = decide(
+        evidence(psr=3.0, contour_ok=False, contour_reason="too-large", rho_meanshift=0.9), CFG
+    )
     assert (d.case, d.why) == (Case.COLOUR, "colour-contour-too-large")
     assert not d.learn and d.noise == 2.0
 
 
 def test_colour_carries_the_target_through_thermal_crossover():
-    d = decide(evidence(psr=3.0, contour_ok=False, contour_reason="low-contrast", rho_meanshift=0.8), CFG)
+    d = decide(
+        evidence(psr=3.0, contour_ok=False, contour_reason="low-contrast", rho_meanshift=0.8), CFG
+    )
     assert (d.case, d.why) == (Case.COLOUR, "colour-ir-faded")
 
 
 def test_colour_that_clearly_matches_elsewhere_vetoes_contour_and_filter():
-    """Two people alike in IR and in gradients, unlike in colour: both shape cues sit on the neighbour."""
-    d = decide(evidence(rho_contour=0.3, rho_appearance=0.3, meanshift_box=at(112), rho_meanshift=0.95), CFG)
+    """Two people alike in IR and in gradients, unlike in colour: both shape cues sit on the
+    neighbour."""
+    d = decide(
+        evidence(rho_contour=0.3, rho_appearance=0.3, meanshift_box=at(112), rho_meanshift=0.95),
+        CFG,
+    )
     assert (d.case, d.box.cx) == (Case.COLOUR, 112)
 
 
@@ -105,50 +153,122 @@ def test_a_measurement_out_of_reach_is_not_taken():
 
 
 def test_the_reach_grows_with_the_predictions_uncertainty():
-    """30 px (1.5 widths) from the prediction and the last box: out of ``jump_fraction``'s reach while the motion is
-    known (the prediction's deviation 2 px), within it while it is not (8 px: 15 + 3 x 8 = 39 px)."""
+    """30 px (1.5 widths) from the prediction and the last box: out of ``jump_fraction``'s reach
+    while the motion is known (the prediction's deviation 2 px), within it while it is not (8 px:
+    15 + 3 x 8 = 39 px)."""
     far = at(130)
-    known = decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(2.0, 2.0)), CFG)
-    unknown = decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(8.0, 8.0)), CFG)
+    known = decide(
+        evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(2.0, 2.0)),
+        CFG,
+    )
+    unknown = decide(
+        evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(8.0, 8.0)),
+        CFG,
+    )
     assert known.case == Case.COAST
     assert (unknown.case, unknown.box) == (Case.CONTOUR, far)
-    assert decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(8.0, 8.0)),
-                  DualConfig(jump_sigma=0.0)).case == Case.COAST
+    assert (
+        decide(
+            evidence(
+                appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(8.0, 8.0)
+            ),
+            DualConfig(jump_sigma=0.0),
+        ).case
+        == Case.COAST
+    )
 
 
 def test_nothing_measured_coasts():
-    d = decide(evidence(contour_box=None, contour_ok=False, contour_reason="no-component", rho_contour=NAN,
-                        appearance_box=None, psr=NAN, meanshift_box=at(101), rho_meanshift=0.2), CFG)
-    assert (d.case, d.status, d.why, d.stage) == (Case.COAST, TargetStatus.OCCLUDED_SEVERE, "no-evidence", "kalman")
-    weak = decide(evidence(contour_box=None, contour_ok=False, contour_reason="no-component", rho_contour=NAN,
-                           psr=5.0, rho_meanshift=0.65), CFG)
-    assert (weak.case, weak.status, weak.why) == (Case.COAST, TargetStatus.OCCLUDED_PARTIAL, "partial-evidence")
+    d = decide(
+        evidence(
+            contour_box=None,
+            contour_ok=False,
+            contour_reason="no-component",
+            rho_contour=NAN,
+            appearance_box=None,
+            psr=NAN,
+            meanshift_box=at(101),
+            rho_meanshift=0.2,
+        ),
+        CFG,
+    )
+    assert (d.case, d.status, d.why, d.stage) == (
+        Case.COAST,
+        TargetStatus.OCCLUDED_SEVERE,
+        "no-evidence",
+        "kalman",
+    )
+    weak = decide(
+        evidence(
+            contour_box=None,
+            contour_ok=False,
+            contour_reason="no-component",
+            rho_contour=NAN,
+            psr=5.0,
+            rho_meanshift=0.65,
+        ),
+        CFG,
+    )
+    assert (weak.case, weak.status, weak.why) == (
+        Case.COAST,
+        TargetStatus.OCCLUDED_PARTIAL,
+        "partial-evidence",
+    )
 
 
-# ------------------------------------------------------------------------------------------------ missing
+# ----------------------------------------------------------------------------------------- missing
+
 
 def test_the_filter_takes_a_hidden_target_back_near_its_prediction():
     d = decide(missing(appearance_box=at(104), psr=12.0, rho_appearance=0.8), CFG)
-    assert (d.case, d.status, d.why, d.stage) == (Case.REACQUIRED, TargetStatus.TRACKING,
-                                                  "appearance-near-prediction", "appearance")
+    assert (d.case, d.status, d.why, d.stage) == (
+        Case.REACQUIRED,
+        TargetStatus.TRACKING,
+        "appearance-near-prediction",
+        "appearance",
+    )
     assert not d.learn
-    assert decide(missing(appearance_box=at(104), psr=8.0), CFG).case == Case.COAST  # under psr_reacquire
+    assert (
+        decide(missing(appearance_box=at(104), psr=8.0), CFG).case == Case.COAST
+    )  # under psr_reacquire
 
 
 def test_redetection_far_away_needs_the_colour_to_agree():
     far = at(250)
     ok = decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.8, redetected=True), CFG)
     assert (ok.case, ok.why) == (Case.REACQUIRED, "redetected")
-    assert decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.4, redetected=True), CFG).case == Case.COAST
-    assert decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.8), CFG).case == Case.COAST  # not searched
+    assert (
+        decide(
+            missing(appearance_box=far, psr=12.0, rho_appearance=0.4, redetected=True), CFG
+        ).case
+        == Case.COAST
+    )
+    assert (
+        decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.8), CFG).case == Case.COAST
+    )  # not searched
 
 
 def test_a_contour_near_the_prediction_takes_it_back_when_the_colour_agrees():
-    d = decide(missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.8), CFG)
+    d = decide(
+        missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.8), CFG
+    )
     assert (d.case, d.why, d.stage) == (Case.REACQUIRED, "contour-near-prediction", "levelset")
-    assert d.contour_scale and not d.learn  # the first frame back measures the size, teaches nothing
-    assert decide(missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.5), CFG).case == Case.COAST
-    beside = decide(missing(frames=1, contour_box=at(125), contour_ok=True, contour_reason="ok", rho_contour=0.8), CFG)
+    assert (
+        d.contour_scale and not d.learn
+    )  # the first frame back measures the size, teaches nothing
+    assert (
+        decide(
+            missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.5),
+            CFG,
+        ).case
+        == Case.COAST
+    )
+    beside = decide(
+        missing(
+            frames=1, contour_box=at(125), contour_ok=True, contour_reason="ok", rho_contour=0.8
+        ),
+        CFG,
+    )
     assert beside.case == Case.COAST  # outside the gate (half a size plus 1 px per missing frame)
 
 
@@ -159,22 +279,33 @@ def test_strong_colour_near_the_prediction_takes_it_back():
 
 def test_lost_after_max_missing_frames_or_out_of_the_frame():
     d = decide(missing(frames=CFG.max_missing_frames), CFG)
-    assert (d.case, d.status, d.why) == (Case.LOST, TargetStatus.LOST, f"{CFG.max_missing_frames + 1}-frames-without-a-measurement")
+    assert (d.case, d.status, d.why) == (
+        Case.LOST,
+        TargetStatus.LOST,
+        f"{CFG.max_missing_frames + 1}-frames-without-a-measurement",
+    )
     assert decide(missing(frames=CFG.max_missing_frames - 1), CFG).case == Case.COAST
     out = decide(missing(frames=2, outside=True), CFG)
     assert (out.case, out.why) == (Case.LOST, "left-the-frame")
 
 
 def test_a_lost_target_found_again_is_reacquired():
-    d = decide(missing(frames=80, appearance_box=at(40), psr=15.0, rho_appearance=0.85, redetected=True), CFG)
+    d = decide(
+        missing(frames=80, appearance_box=at(40), psr=15.0, rho_appearance=0.85, redetected=True),
+        CFG,
+    )
     assert d.case == Case.REACQUIRED
 
 
-# ------------------------------------------------------------------------------------------------ modes, paper
+# ------------------------------------------------------------------------------------ modes, paper
+
 
 def test_one_channel_modes_use_the_same_rules():
-    """Visible only: no contour; IR only: the mean-shift histogram is IR intensity (colour_informative)."""
-    vis = evidence(contour_box=None, contour_ok=False, contour_reason="no-contour", rho_contour=NAN)
+    """Visible only: no contour; IR only: the mean-shift histogram is IR intensity
+    (colour_informative)."""
+    vis = evidence(
+        contour_box=None, contour_ok=False, contour_reason="no-contour", rho_contour=NAN
+    )
     assert decide(vis, CFG).case == Case.APPEARANCE
     assert decide(dataclasses.replace(vis, psr=3.0), CFG).case == Case.COLOUR
     ir = evidence(psr=3.0, contour_ok=False, contour_reason="leak", rho_meanshift=0.9)
@@ -192,12 +323,23 @@ def test_without_the_filter_its_rules_never_apply():
 def test_without_contour_checks_any_contour_is_clean():
     cfg = dataclasses.replace(CFG, contour_checks=False, appearance_cue=False)
     d = decide(evidence(contour_ok=False, contour_reason="leak", contour_box=at(100, h=20)), cfg)
-    assert (d.case, d.status) == (Case.CONTOUR, TargetStatus.TRACKING)  # not even a cut contour is an occlusion
+    assert (d.case, d.status) == (
+        Case.CONTOUR,
+        TargetStatus.TRACKING,
+    )  # not even a cut contour is an occlusion
 
 
-@pytest.mark.parametrize("name, value", [("agree_fraction", 0.0), ("jump_fraction", 6.0), ("colour_veto_margin", 0.0),
-                                         ("scale_agree_ratio", 1.0), ("psr_confident", -1.0),
-                                         ("redetect_every_frames", 0)])
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("agree_fraction", 0.0),
+        ("jump_fraction", 6.0),
+        ("colour_veto_margin", 0.0),
+        ("scale_agree_ratio", 1.0),
+        ("psr_confident", -1.0),
+        ("redetect_every_frames", 0),
+    ],
+)
 def test_declared_ranges_are_enforced(name, value):
     with pytest.raises(ValueError, match=f"dual.{name}"):
         DualConfig(**{name: value})

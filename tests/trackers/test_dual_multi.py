@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 
 import numpy as np
 import pyarrow.compute as pc
@@ -13,7 +14,12 @@ from tests.rrd_helpers import open_store, rows, texts
 
 
 def metrics(path, tmp_path, name, sets=()):
-    res = run_track(path, RunOptions(tracker="dual", out_dir=tmp_path / name, rrd=False, plots=False, sets=list(sets)))
+    res = run_track(
+        path,
+        RunOptions(
+            tracker="dual", out_dir=tmp_path / name, rrd=False, plots=False, sets=list(sets)
+        ),
+    )
     return res.summary["metrics"]
 
 
@@ -27,30 +33,71 @@ def test_identities_survive_crossings_and_lookalikes_side_by_side(scene, tmp_pat
 
 def test_group_of_three_merging_at_once(scene, tmp_path):
     """The group scene. Measured on seeds 0-2: purity 0.988 / 0.992 / 0.978, no ID
-    switch, P@20 0.998; without keeping coasting members inside the merged blob 0.925 / 0.928 / 0.937 with
-    2 / 2 / 0 switches; independent tracking without merge handling: P@20 0.79, purity 0.70, 3 switches."""
+    switch, P@20 0.998; without keeping coasting members inside the merged blob 0.925 / 0.928 /
+    0.937 with 2 / 2 / 0 switches; independent tracking without merge handling: P@20 0.79, purity
+    0.70, 3 switches."""
     m = metrics(scene("group3"), tmp_path, "group3")
     assert m["p20"] >= 0.97, m["targets"]
     assert m["purity"]["overall"] >= 0.98, m["purity"]
     assert m["id_switches"] == 0
-    # what the merge handling itself is worth, without the correlation filter (which keeps most identities alone)
-    paper = metrics(scene("group3"), tmp_path, "merge", ["dual.appearance_cue=false", "dual.merge_handling=true"])
-    coasting = metrics(scene("group3"), tmp_path, "coast", ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_inside_blob=false"])
-    assert paper["purity"]["overall"] >= coasting["purity"]["overall"] + 0.03, (paper["purity"], coasting["purity"])
-    indep = metrics(scene("group3"), tmp_path, "indep", ["dual.appearance_cue=false", "dual.merge_handling=false"])
-    assert paper["purity"]["overall"] >= indep["purity"]["overall"] + 0.1, (paper["purity"], indep["purity"])
+    # what the merge handling itself is worth, without the correlation filter (which keeps most
+    # identities alone)
+    paper = metrics(
+        scene("group3"),
+        tmp_path,
+        "merge",
+        ["dual.appearance_cue=false", "dual.merge_handling=true"],
+    )
+    coasting = metrics(
+        scene("group3"),
+        tmp_path,
+        "coast",
+        ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_inside_blob=false"],
+    )
+    assert paper["purity"]["overall"] >= coasting["purity"]["overall"] + 0.03, (
+        paper["purity"],
+        coasting["purity"],
+    )
+    indep = metrics(
+        scene("group3"),
+        tmp_path,
+        "indep",
+        ["dual.appearance_cue=false", "dual.merge_handling=false"],
+    )
+    assert paper["purity"]["overall"] >= indep["purity"]["overall"] + 0.1, (
+        paper["purity"],
+        indep["purity"],
+    )
 
 
 def test_lookalikes_need_the_beyond_the_paper_placement(scene, tmp_path):
-    """The paper's eq. 11 with mean shift for the foreground lets one twin's mean shift slide onto the other."""
-    ours = metrics(scene("meet-part"), tmp_path, "auto", ["dual.appearance_cue=false", "dual.merge_handling=true"])
-    paper = metrics(scene("meet-part"), tmp_path, "eq11", ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_position=eq11"])
-    assert ours["purity"]["overall"] >= paper["purity"]["overall"] + 0.1, (ours["purity"], paper["purity"])
+    """The paper's eq. 11 with mean shift for the foreground lets one twin's mean shift slide onto
+    the other."""
+    ours = metrics(
+        scene("meet-part"),
+        tmp_path,
+        "auto",
+        ["dual.appearance_cue=false", "dual.merge_handling=true"],
+    )
+    paper = metrics(
+        scene("meet-part"),
+        tmp_path,
+        "eq11",
+        ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_position=eq11"],
+    )
+    assert ours["purity"]["overall"] >= paper["purity"]["overall"] + 0.1, (
+        ours["purity"],
+        paper["purity"],
+    )
 
 
 def test_merge_and_split_events_roles_and_drawing(scene, tmp_path):
-    out = run_track(scene("crossing2"), RunOptions(tracker="dual", out_dir=tmp_path / "r", plots=False,
-                                                   sets=["dual.merge_handling=true"])).out_dir
+    out = run_track(
+        scene("crossing2"),
+        RunOptions(
+            tracker="dual", out_dir=tmp_path / "r", plots=False, sets=["dual.merge_handling=true"]
+        ),
+    ).out_dir
     table = list(csv.DictReader((out / "targets.csv").read_text().splitlines()))
     merged = [r for r in table if r["status"] == "merged"]
     assert merged, "the crossing never registered as a merge"
@@ -63,14 +110,17 @@ def test_merge_and_split_events_roles_and_drawing(scene, tmp_path):
     assert both
     roles = {d[i]["source"] for f in both for d in [by_frame[f]] for i in d}
     assert "merge-foreground" in roles and roles & {"merge-eq11", "merge-motion", "merge-visible"}
-    assert all(r["model_update"] == "frozen:merged" for r in merged)  # no model update while merged
+    assert all(
+        r["model_update"] == "frozen:merged" for r in merged
+    )  # no model update while merged
     # after the merge both are tracked again, each on its own person (P@20 is checked above)
     last = {r["id"]: r["status"] for r in table if int(r["frame"]) == 160}
     assert last == {"1": "tracking", "2": "tracking"}
-    # one crossing, one merge episode: no merge / split / merge flicker as they part (dual.split_hold_frames)
+    # one crossing, one merge episode: no merge / split / merge flicker as they part
+    # (dual.split_hold_frames)
     for tid in ("1", "2"):
         st = [r["status"] == "merged" for r in table if r["id"] == tid]
-        assert sum(x != y for x, y in zip(st, st[1:])) == 2, tid
+        assert sum(x != y for x, y in itertools.pairwise(st)) == 2, tid
 
     store = open_store(out / "run.rrd")
     log = [t for _f, t in texts(store, "events")]

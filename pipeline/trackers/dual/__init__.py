@@ -23,5 +23,17 @@ from pipeline.trackers.dual.state import DualState, DualTarget, GroupMemory
 from pipeline.trackers.dual.tracker import init, mode_of, step
 from pipeline.trackers.dual.update import scale_update
 
-__all__ = ["Case", "Decision", "DualConfig", "DualState", "DualTarget", "Evidence", "GroupMemory", "decide", "init",
-           "mode_of", "scale_update", "step"]
+__all__ = [
+    "Case",
+    "Decision",
+    "DualConfig",
+    "DualState",
+    "DualTarget",
+    "Evidence",
+    "GroupMemory",
+    "decide",
+    "init",
+    "mode_of",
+    "scale_update",
+    "step",
+]

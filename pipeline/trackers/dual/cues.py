@@ -1,4 +1,5 @@
-"""The dual tracker's cues: the motion prior, the colour mean shift, the correlation filter and the IR contour.
+"""The dual tracker's cues: the motion prior, the colour mean shift, the correlation filter and the
+IR contour.
 
 Each function measures one cue for one target and returns plain values; none decides (that
 is ``decide.py``) or changes the target (``update.py``).
@@ -41,7 +42,8 @@ def add_time(timing: dict[str, float], key: str, t0: float) -> float:
 
 
 def colour_image(frames: FramePair, mode: str) -> np.ndarray:
-    """The image the mean-shift cue works on: the visible frame, or the IR frame in the IR-only mode."""
+    """The image the mean-shift cue works on: the visible frame, or the IR frame in the IR-only
+    mode."""
     img = frames.infrared if mode == "ir" else frames.visible
     assert img is not None
     return img
@@ -49,11 +51,15 @@ def colour_image(frames: FramePair, mode: str) -> np.ndarray:
 
 def filter_images(frames: FramePair, mode: str) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The (visible, infrared) frames the correlation filter sees in a mode."""
-    return (frames.visible if mode in ("dual", "visible") else None, frames.infrared if mode in ("dual", "ir") else None)
+    return (
+        frames.visible if mode in ("dual", "visible") else None,
+        frames.infrared if mode in ("dual", "ir") else None,
+    )
 
 
 def colour_informative(image: np.ndarray, box: BBox, cfg: DualConfig) -> tuple[bool, float]:
-    """Whether enough of the kernel's pixels are bright enough to carry colour (always True for IR)."""
+    """Whether enough of the kernel's pixels are bright enough to carry colour (always True for
+    IR)."""
     if image.ndim == 2 or not cfg.channel_weighting:
         return True, 1.0
     h, w = image.shape[:2]
@@ -62,7 +68,9 @@ def colour_informative(image: np.ndarray, box: BBox, cfg: DualConfig) -> tuple[b
     return frac >= cfg.colour_min_fraction, frac
 
 
-def backprojection_peak(bins: np.ndarray, q: np.ndarray, size: tuple[float, float]) -> tuple[float, float] | None:
+def backprojection_peak(
+    bins: np.ndarray, q: np.ndarray, size: tuple[float, float]
+) -> tuple[float, float] | None:
     """Centre (px of ``bins``) of the target-sized window holding the most model probability."""
     prob = q[bins].astype(np.float32)
     kw, kh = max(int(size[0]) | 1, 3), max(int(size[1]) | 1, 3)
@@ -73,10 +81,14 @@ def backprojection_peak(bins: np.ndarray, q: np.ndarray, size: tuple[float, floa
     return (c + 0.5, r + 0.5) if dens[r, c] > 0 else None
 
 
-def match_at(bins: np.ndarray, q: np.ndarray, box: BBox, roi0: tuple[int, int], min_mass_fraction: float) -> float:
-    """Bhattacharyya coefficient of the model and the kernel histogram inside ``box`` (frame px); NaN when
-    too little of the kernel lies in the region."""
-    p, n, mass = ellipse_model(bins, box.cx - roi0[0], box.cy - roi0[1], box.w / 2, box.h / 2, q.size)
+def match_at(
+    bins: np.ndarray, q: np.ndarray, box: BBox, roi0: tuple[int, int], min_mass_fraction: float
+) -> float:
+    """Bhattacharyya coefficient of the model and the kernel histogram inside ``box`` (frame px);
+    NaN when too little of the kernel lies in the region."""
+    p, n, mass = ellipse_model(
+        bins, box.cx - roi0[0], box.cy - roi0[1], box.w / 2, box.h / 2, q.size
+    )
     if mass < min_mass_fraction:
         return float("nan")
     return bhattacharyya(p, q) if n > 0 else 0.0
@@ -105,10 +117,14 @@ class ColourStep:
     @property
     def box_prior(self) -> BBox:
         """The target's box at its predicted position."""
-        return BBox.from_center(float(self.prior.x[0]), float(self.prior.x[1]), self.t.size[0], self.t.size[1])
+        return BBox.from_center(
+            float(self.prior.x[0]), float(self.prior.x[1]), self.t.size[0], self.t.size[1]
+        )
 
 
-def colour_stage(frames: FramePair, t: DualTarget, cfg: PipelineConfig, mode: str, timing: dict[str, float]) -> ColourStep:
+def colour_stage(
+    frames: FramePair, t: DualTarget, cfg: PipelineConfig, mode: str, timing: dict[str, float]
+) -> ColourStep:
     """Motion prior y0 (or the previous position) and mean shift in the colour channel -> y1."""
     dcfg: DualConfig = cfg.dual
     kcfg = cfg.kalman
@@ -156,36 +172,59 @@ class AppearanceCue:
     psr: float
     scale_factor: float
     redetected: bool  # found by the widened or whole-frame search, not at the prediction
-    support: tuple[float, float] = (float("nan"), float("nan"))  # (visible, IR) PSR of each channel at the peak
+    support: tuple[float, float] = (
+        float("nan"),
+        float("nan"),
+    )  # (visible, IR) PSR of each channel at the peak
 
 
-def region_candidates(center: tuple[float, float], radius: float, size: tuple[float, float], W: int, H: int,
-                      limit: int, turn: int) -> list[tuple[float, float]]:
-    """Up to ``limit`` centres on a grid of one target size (per axis) within ``radius`` of ``center``, inside the
-    frame: the nearest first; a larger grid is covered over successive calls (``turn``)."""
+def region_candidates(
+    center: tuple[float, float],
+    radius: float,
+    size: tuple[float, float],
+    W: int,
+    H: int,
+    limit: int,
+    turn: int,
+) -> list[tuple[float, float]]:
+    """Up to ``limit`` centres on a grid of one target size (per axis) within ``radius`` of
+    ``center``, inside the frame: the nearest first; a larger grid is covered over successive calls
+    (``turn``)."""
     sx, sy = max(size[0], 4.0), max(size[1], 4.0)
     nx, ny = int(radius // sx), int(radius // sy)
-    pts = [(center[0] + ix * sx, center[1] + iy * sy) for iy in range(-ny, ny + 1) for ix in range(-nx, nx + 1)
-           if (ix or iy) and math.hypot(ix * sx, iy * sy) <= radius + 1e-9]
+    pts = [
+        (center[0] + ix * sx, center[1] + iy * sy)
+        for iy in range(-ny, ny + 1)
+        for ix in range(-nx, nx + 1)
+        if (ix or iy) and math.hypot(ix * sx, iy * sy) <= radius + 1e-9
+    ]
     pts = [p for p in pts if 0 <= p[0] < W and 0 <= p[1] < H]
     pts.sort(key=lambda p: math.hypot(p[0] - center[0], p[1] - center[1]))
     if len(pts) <= limit:
         return pts
     k = turn % -(-len(pts) // limit)
-    return pts[k * limit:(k + 1) * limit]
+    return pts[k * limit : (k + 1) * limit]
 
 
-def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: PipelineConfig, limit: int,
-                     background: Background | Callable[[], Background | None] | None = None
-                     ) -> list[tuple[float, float]]:
-    """Centres of the detector's regions (``detection`` section; its foreground method against ``background``, the
-    sequence's (:mod:`pipeline.io.background`), or this frame's own without one) in the IR frame (the visible one
-    without IR) about the target's size (a quarter to four times its area), the closest in size first: where a
-    lost target may be anywhere. ``background`` may be a function returning it (read only when needed)."""
+def frame_candidates(
+    frames: FramePair,
+    size: tuple[float, float],
+    cfg: PipelineConfig,
+    limit: int,
+    background: Background | Callable[[], Background | None] | None = None,
+) -> list[tuple[float, float]]:
+    """Centres of the detector's regions (``detection`` section; its foreground method against
+    ``background``, the sequence's (:mod:`pipeline.io.background`), or this frame's own without
+    one) in the IR frame (the visible one without IR) about the target's size (a quarter to four
+    times its area), the closest in size first: where a lost target may be anywhere. ``background``
+    may be a function returning it (read only when needed)."""
     img = frames.infrared if frames.infrared is not None else frames.visible
     assert img is not None
-    found = detection.detect(img, detection.infrared_only(cfg.detection),
-                             background() if callable(background) else background).regions
+    found = detection.detect(
+        img,
+        detection.infrared_only(cfg.detection),
+        background() if callable(background) else background,
+    ).regions
     area = max(size[0] * size[1], 1.0)
     near = [r for r in found if 0.25 <= r.box.area / area <= 4.0]
     near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
@@ -193,8 +232,8 @@ def frame_candidates(frames: FramePair, size: tuple[float, float], cfg: Pipeline
 
 
 def last_seen(t: DualTarget, dcfg: DualConfig) -> tuple[float, float] | None:
-    """Centre of the target's last clean measurement, where the widened search also looks (None without one or
-    with ``redetect_last_seen`` off)."""
+    """Centre of the target's last clean measurement, where the widened search also looks (None
+    without one or with ``redetect_last_seen`` off)."""
     if not dcfg.redetect_last_seen or not t.history:
         return None
     return (t.history[-1][1], t.history[-1][2])
@@ -209,21 +248,30 @@ def recent_speed(t: DualTarget) -> float:
 
 
 def taken_back(d: app.Detection, cs: ColourStep, dcfg: DualConfig) -> bool:
-    """The filter's detection ``d`` of a missing target is one that rule 7 of the decision takes back: at
-    ``psr_reacquire`` and near the prediction (:func:`pipeline.trackers.dual.decide.near_prediction`)."""
+    """The filter's detection ``d`` of a missing target is one that rule 7 of the decision takes
+    back: at ``psr_reacquire`` and near the prediction
+    (:func:`pipeline.trackers.dual.decide.near_prediction`)."""
     predicted = (float(cs.prior.x[0]), float(cs.prior.x[1]))
-    return d.psr >= dcfg.psr_reacquire and near_prediction(d.center, predicted, cs.t.reference_size, cs.t.missing, dcfg)
+    return d.psr >= dcfg.psr_reacquire and near_prediction(
+        d.center, predicted, cs.t.reference_size, cs.t.missing, dcfg
+    )
 
 
-def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode: str, timing: dict[str, float],
-                   frame_index: int, background: Background | Callable[[], Background | None] | None = None
-                   ) -> AppearanceCue | None:
-    """Detect the target with its filter at its prediction (and at the colour cue's position when that is
-    elsewhere); a missing target is also looked for, every ``redetect_every_frames``, over a region widening
-    with the missing frames and, after ``redetect_global_after_frames``, at the detector's regions of the whole
-    frame, at most ``redetect_candidates`` places a frame; the widening region is searched around the prediction
-    and around where the target was last seen; ``background`` is the detector's (see :func:`frame_candidates`).
-    None without a filter."""
+def appearance_cue(
+    frames: FramePair,
+    cs: ColourStep,
+    cfg: PipelineConfig,
+    mode: str,
+    timing: dict[str, float],
+    frame_index: int,
+    background: Background | Callable[[], Background | None] | None = None,
+) -> AppearanceCue | None:
+    """Detect the target with its filter at its prediction (and at the colour cue's position when
+    that is elsewhere); a missing target is also looked for, every ``redetect_every_frames``, over
+    a region widening with the missing frames and, after ``redetect_global_after_frames``, at the
+    detector's regions of the whole frame, at most ``redetect_candidates`` places a frame; the
+    widening region is searched around the prediction and around where the target was last seen;
+    ``background`` is the detector's (see :func:`frame_candidates`). None without a filter."""
     dcfg: DualConfig = cfg.dual
     acfg: app.AppearanceConfig = cfg.appearance
     t = cs.t
@@ -236,16 +284,22 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode:
     best = app.detect(t.appearance, vis, ir, cs.y0, acfg, size=size, with_scale=with_scale)
     redetected = False
     missing = t.missing > 0
-    if (cs.informative and cs.rho1 >= dcfg.colour_min_rho and best.psr < dcfg.psr_reacquire
-            and (abs(cs.y1[0] - cs.y0[0]) > dcfg.agree_fraction * size[0]
-                 or abs(cs.y1[1] - cs.y0[1]) > dcfg.agree_fraction * size[1])):
+    if (
+        cs.informative
+        and cs.rho1 >= dcfg.colour_min_rho
+        and best.psr < dcfg.psr_reacquire
+        and (
+            abs(cs.y1[0] - cs.y0[0]) > dcfg.agree_fraction * size[0]
+            or abs(cs.y1[1] - cs.y0[1]) > dcfg.agree_fraction * size[1]
+        )
+    ):
         # the colour found the target away from its prediction (a turn): the filter looks there too
         d = app.detect(t.appearance, vis, ir, cs.y1, acfg, size=size, with_scale=with_scale)
         if d.psr > best.psr:
             best = d
-    # a missing target is searched for unless the filter finds it where rule 7 of the decision takes it back (a
-    # confident peak elsewhere in the window, on something the filter learned while the target was hidden, does not
-    # stop the search)
+    # a missing target is searched for unless the filter finds it where rule 7 of the decision
+    # takes it back (a confident peak elsewhere in the window, on something the filter learned
+    # while the target was hidden, does not stop the search)
     if missing and dcfg.redetect and not taken_back(best, cs, dcfg):
         H, W = frames.shape
         cands = []
@@ -256,12 +310,18 @@ def appearance_cue(frames: FramePair, cs: ColourStep, cfg: PipelineConfig, mode:
             if t.missing >= dcfg.redetect_global_after_frames:
                 cands += frame_candidates(frames, size, cfg, dcfg.redetect_candidates, background)
             else:
-                rate = max(dcfg.redetect_radius_px_per_frame, recent_speed(t) if dcfg.redetect_last_seen else 0.0)
+                rate = max(
+                    dcfg.redetect_radius_px_per_frame,
+                    recent_speed(t) if dcfg.redetect_last_seen else 0.0,
+                )
                 radius = 0.5 * math.hypot(*size) + rate * t.missing
                 centres = [cs.y0]
                 seen = last_seen(t, dcfg)
-                if seen is not None and math.hypot(seen[0] - cs.y0[0], seen[1] - cs.y0[1]) > 0.5 * min(size):
-                    # a target that turned or stopped while hidden is near where it was last seen, not ahead
+                if seen is not None and math.hypot(
+                    seen[0] - cs.y0[0], seen[1] - cs.y0[1]
+                ) > 0.5 * min(size):
+                    # a target that turned or stopped while hidden is near where it was last seen,
+                    # not ahead
                     centres.append(seen)
                 per = -(-dcfg.redetect_candidates // len(centres))
                 for c0 in centres:

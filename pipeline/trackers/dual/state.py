@@ -42,8 +42,14 @@ class DualTarget:
     last_update: str = "none"
     split_frame: int = -1_000_000  # frame of the last split from a merge (re-merge hysteresis)
     appearance: AppearanceModel | None = None
-    app_size: tuple[float, float] = (0.0, 0.0)  # the filter's own size estimate (its scale filter's track)
-    entering: tuple[bool, bool] = (False, False)  # given cut by the frame's border along x / y: walking in
+    app_size: tuple[float, float] = (
+        0.0,
+        0.0,
+    )  # the filter's own size estimate (its scale filter's track)
+    entering: tuple[bool, bool] = (
+        False,
+        False,
+    )  # given cut by the frame's border along x / y: walking in
     case: str = "init"
 
     @property
@@ -73,9 +79,9 @@ class GroupMemory:
 
 @dataclass(frozen=True)
 class DualState:
-    """Every target, the mode (``dual``: both channels, ``ir`` or ``visible``: one), the merged groups and the
-    detector's background of the frame (a sequence's, :mod:`pipeline.io.background`, or a function of no arguments
-    returning it; None: each frame's own)."""
+    """Every target, the mode (``dual``: both channels, ``ir`` or ``visible``: one), the merged
+    groups and the detector's background of the frame (a sequence's, :mod:`pipeline.io.background`,
+    or a function of no arguments returning it; None: each frame's own)."""
 
     targets: tuple[DualTarget, ...]
     mode: str
