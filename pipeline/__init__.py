@@ -14,8 +14,8 @@ The Python API:
 Examples
 --------
 >>> import pipeline
->>> cfg = pipeline.load_config(None, ["dual.scale_rate=0.3"])
->>> cfg.dual.scale_rate
+>>> cfg = pipeline.load_config(None, ["dual.size.scale_rate=0.3"])
+>>> cfg.dual.size.scale_rate
 0.3
 >>> pipeline.BBox(10, 20, 30, 40).center
 (25.0, 40.0)

@@ -130,9 +130,24 @@ class Tracker:
 
 class DualTracker(Tracker):
     """The dual-channel tracker (``dual``): colour mean shift, IR contour, correlation filter (see
-    :class:`Tracker`)."""
+    :class:`Tracker`).
+
+    Examples
+    --------
+    >>> from pipeline import DualTracker
+    >>> DualTracker().config.dual.groups is None, DualTracker.paper().config.dual.groups is None
+    (True, False)
+    """
 
     default_name = "dual"
+
+    @classmethod
+    def paper(cls) -> DualTracker:
+        """The paper's dual tracker: the composition of
+        :meth:`~pipeline.tracker_config.DualConfig.paper` (``data/dual-paper.toml``)."""
+        from pipeline.tracker_config import DualConfig
+
+        return cls(PipelineConfig(dual=DualConfig.paper()))
 
 
 class MeanShiftTracker(Tracker):

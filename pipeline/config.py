@@ -1,19 +1,26 @@
-"""The resolved configuration: one frozen dataclass per stage, gathered in :class:`PipelineConfig`.
+"""The resolved configuration: a tree of frozen sections, gathered in :class:`PipelineConfig`.
 
-Every parameter lives once, in the config dataclass of its stage, with its unit in its
-name and its documentation in the class docstring. Users override them with a TOML file
-(``--config FILE.toml``, one table per section) and with ``--set section.param=value``
-(applied after the file)::
+Every parameter lives once, in the section of the part that uses it, with its unit in its
+name and its documentation in the section's docstring. A tracker's section holds the sections
+of the parts it is built from (:mod:`pipeline.tracker_config`); users override any of them
+with a TOML file (``--config FILE.toml``, one table per section, dotted as the tree is) and
+with ``--set path.param=value`` (applied after the file)::
 
-    [meanshift]
+    [dual.meanshift]
     max_iterations = 30
 
-    dualtrack track SEQ --set levelset.area_weight=2.0
+    dualtrack track SEQ --set dual.levelset.area_weight=2.0 --set dual.groups=default
+
+An optional part (a section that may be None) is left out with ``none`` (``off``, ``false``)
+and put back with its defaults with ``default`` (``on``, ``true``) or by setting any of its
+parameters.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import re
 import tomllib
 import types
 import typing
@@ -22,82 +29,101 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.errors import ConfigError
+from pipeline.params import Section
 from pipeline.sinks.settings import RerunConfig
-from pipeline.stages.appearance import AppearanceConfig
-from pipeline.stages.association import AssociationConfig
-from pipeline.stages.contour import ContourConfig
-from pipeline.stages.detection import DetectionConfig
-from pipeline.stages.extent import ExtentConfig
-from pipeline.stages.histogram import HistogramConfig
-from pipeline.stages.kalman import KalmanConfig
-from pipeline.stages.levelset import LevelSetConfig
-from pipeline.stages.meanshift import MeanShiftConfig
-from pipeline.stages.model_update import ModelUpdateConfig
-from pipeline.stages.occlusion import OcclusionConfig
-from pipeline.stages.roi_match import RoiMatchConfig
-from pipeline.tracker_config import CamShiftConfig, DualConfig, OpenCVTrackerConfig
+from pipeline.tracker_config import (
+    CamShiftConfig,
+    DetectConfig,
+    DualConfig,
+    KalmanCamShiftConfig,
+    MeanShiftTrackerConfig,
+    OpenCVTrackerConfig,
+)
 
 
 @dataclass(frozen=True)
 class PipelineConfig:
-    """All sections. Field names are the section names used by ``--set`` and TOML tables.
+    """Every tracker's configuration tree, the peers' and the recording's.
+
+    Field names are the first part of every ``--set`` key and TOML table
+    (``kalman-camshift`` may be written for ``kalman_camshift``).
 
     Parameters
     ----------
-    histogram : HistogramConfig
-        Appearance histogram binning.
-    meanshift : MeanShiftConfig
-        Mean-shift iteration and scale search.
-    levelset : LevelSetConfig
-        DRLSE level-set evolution.
-    contour : ContourConfig
-        The IR contour stage around the level set (region, starts, failure tests).
-    model_update : ModelUpdateConfig
-        Selective sub-model update (eq. 8-9).
     dual : DualConfig
-        The dual-channel tracker.
-    appearance : AppearanceConfig
-        The dual tracker's correlation filter.
-    extent : ExtentConfig
-        The dual tracker's colour extent (the box's width and height from the target's colours).
+        The dual-channel tracker and its parts.
+    meanshift : MeanShiftTrackerConfig
+        The ``meanshift`` tracker.
+    kalman_camshift : KalmanCamShiftConfig
+        The ``kalman-camshift`` tracker.
+    detect : DetectConfig
+        The detection-driven ``detect`` tracker; also ``dualtrack detect`` and ``--detect``.
     camshift : CamShiftConfig
-        OpenCV CamShift peer.
+        OpenCV's CamShift peer.
     opencv : OpenCVTrackerConfig
-        OpenCV MIL/CSRT/KCF peers.
-    kalman : KalmanConfig
-        Kalman motion stage (all trackers that predict).
-    occlusion : OcclusionConfig
-        Kalman-CAMShift occlusion grading.
-    detection : DetectionConfig
-        STDM detection and ROI discrimination.
-    roi_match : RoiMatchConfig
-        Affine-invariant ROI correlation (the image term).
-    association : AssociationConfig
-        Global association, track birth and death (the detection-driven tracker).
+        OpenCV's MIL, CSRT and KCF peers (and the channel CamShift runs on).
     rerun : RerunConfig
         The .rrd recording.
     """
 
-    histogram: HistogramConfig = field(default_factory=HistogramConfig)
-    meanshift: MeanShiftConfig = field(default_factory=MeanShiftConfig)
-    levelset: LevelSetConfig = field(default_factory=LevelSetConfig)
-    contour: ContourConfig = field(default_factory=ContourConfig)
-    model_update: ModelUpdateConfig = field(default_factory=ModelUpdateConfig)
     dual: DualConfig = field(default_factory=DualConfig)
-    appearance: AppearanceConfig = field(default_factory=AppearanceConfig)
-    extent: ExtentConfig = field(default_factory=ExtentConfig)
+    meanshift: MeanShiftTrackerConfig = field(default_factory=MeanShiftTrackerConfig)
+    kalman_camshift: KalmanCamShiftConfig = field(default_factory=KalmanCamShiftConfig)
+    detect: DetectConfig = field(default_factory=DetectConfig)
     camshift: CamShiftConfig = field(default_factory=CamShiftConfig)
     opencv: OpenCVTrackerConfig = field(default_factory=OpenCVTrackerConfig)
-    kalman: KalmanConfig = field(default_factory=KalmanConfig)
-    occlusion: OcclusionConfig = field(default_factory=OcclusionConfig)
-    detection: DetectionConfig = field(default_factory=DetectionConfig)
-    roi_match: RoiMatchConfig = field(default_factory=RoiMatchConfig)
-    association: AssociationConfig = field(default_factory=AssociationConfig)
     rerun: RerunConfig = field(default_factory=RerunConfig)
 
 
+TRACKER_SECTIONS = {
+    "dual": "dual",
+    "meanshift": "meanshift",
+    "kalman-camshift": "kalman_camshift",
+    "detect": "detect",
+    "camshift": "camshift",
+    "mil": "opencv",
+    "csrt": "opencv",
+    "kcf": "opencv",
+}
+"""The section of :class:`PipelineConfig` each tracker runs with."""
+
+
 def section_names() -> list[str]:
+    """The top-level sections: the first part of every key."""
     return [f.name for f in dataclasses.fields(PipelineConfig)]
+
+
+@functools.cache
+def sub_sections(cls: type) -> dict[str, tuple[type, bool]]:
+    """``{field: (section class, optional)}`` of the fields of ``cls`` that are sections
+    themselves (optional: the field may be None, the part left out)."""
+    out = {}
+    for name, hint in typing.get_type_hints(cls).items():
+        if name not in {f.name for f in dataclasses.fields(cls)}:
+            continue
+        args = (
+            typing.get_args(hint)
+            if typing.get_origin(hint) in (typing.Union, types.UnionType)
+            else (hint,)
+        )
+        sections = [a for a in args if isinstance(a, type) and issubclass(a, Section)]
+        if sections:
+            out[name] = (sections[0], type(None) in args)
+    return out
+
+
+def walk_sections(cfg: object, path: str = "") -> list[tuple[str, Section]]:
+    """``(path, section)`` of every section in the tree under ``cfg`` (present ones only),
+    depth first: ``[("dual", DualConfig(...)), ("dual.motion", MotionConfig(...)), ...]``."""
+    out: list[tuple[str, Section]] = []
+    for name in sub_sections(type(cfg)):
+        sec = getattr(cfg, name)
+        if sec is None:
+            continue
+        p = f"{path}.{name}" if path else name
+        out.append((p, sec))
+        out += walk_sections(sec, p)
+    return out
 
 
 def _coerce(value: Any, hint: Any, where: str) -> Any:
@@ -161,49 +187,112 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     return value
 
 
-def _replace_section(section: Any, name: str, values: dict[str, Any]) -> Any:
-    hints = typing.get_type_hints(type(section))
+_OFF = ("none", "off", "false", "no")
+_ON = ("default", "on", "true", "yes")
+
+
+def _toggle(value: Any) -> bool | None:
+    """True / False for a value that puts an optional part in / leaves it out; None otherwise."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in _OFF + _ON:
+        return value.strip().lower() in _ON
+    return None
+
+
+def _sub(current: Any, cls: type, optional: bool, path: str, value: Any) -> Any:
+    """The section at ``path`` (``current``, possibly None) after ``value``: a table of
+    overrides, or (for an optional part) ``none`` / ``default``."""
+    switch = _toggle(value)
+    if switch is not None and not isinstance(value, dict):
+        if not optional:
+            raise ConfigError(f"{path} is a section; set its parameters ({path}.name=value)")
+        if not switch:
+            return None
+        return current if current is not None else cls()
+    if not isinstance(value, dict):
+        raise ConfigError(f"{path} is a section; set its parameters ({path}.name=value)")
+    return _replace_section(current if current is not None else cls(), path, value)
+
+
+def _replace_section(section: Any, path: str, values: dict[str, Any]) -> Any:
+    """``section`` (the one at ``path``) with ``values`` applied, sub-sections recursively."""
+    cls = type(section)
+    hints = typing.get_type_hints(cls)
+    subs = sub_sections(cls)
     known = {f.name for f in dataclasses.fields(section)}
     changes = {}
     for key, raw in values.items():
+        key = key.replace("-", "_")
+        where = f"{path}.{key}" if path else key
         if key not in known:
-            raise ConfigError(
-                f"unknown parameter {name}.{key}; {name} has: {', '.join(sorted(known))}"
-            )
-        changes[key] = _coerce(raw, hints[key], f"{name}.{key}")
+            has = ", ".join(sorted(known))
+            if not path:
+                raise ConfigError(f"unknown config section {key!r}; sections: {has}")
+            raise ConfigError(f"unknown parameter {where}; {path} has: {has}")
+        if key in subs:
+            changes[key] = _sub(getattr(section, key), *subs[key], where, raw)
+        elif isinstance(raw, dict):
+            raise ConfigError(f"{where} is a parameter, not a section; got a table")
+        else:
+            changes[key] = _coerce(raw, hints[key], where)
     try:
         return dataclasses.replace(section, **changes)
     except ValueError as exc:
-        raise ConfigError(str(exc)) from None
+        raise ConfigError(_full_path(str(exc), cls, path)) from None
 
 
-def apply_overrides(cfg: PipelineConfig, overrides: dict[str, dict[str, Any]]) -> PipelineConfig:
-    """Return ``cfg`` with ``{section: {param: value}}`` applied (values coerced and validated)."""
-    sections = section_names()
-    changes = {}
+def _full_path(message: str, cls: type, path: str) -> str:
+    """A section's validation message (``"<section>.<field> must ..."``) with the section's
+    name replaced by its path in the tree."""
+    short = getattr(cls, "section", "")
+    if not (short and path):
+        return message
+    return re.sub(rf"(?<![\w.]){re.escape(short)}\.", path + ".", message)
+
+
+def apply_overrides(cfg: PipelineConfig, overrides: dict[str, Any]) -> PipelineConfig:
+    """Return ``cfg`` with ``{section: {param or sub-section: value or table}}`` applied (values
+    coerced and validated)."""
+    if not isinstance(overrides, dict):
+        raise ConfigError("a configuration must be a table of sections")
     for name, values in overrides.items():
-        if name not in sections:
-            raise ConfigError(f"unknown config section {name!r}; sections: {', '.join(sections)}")
-        if not isinstance(values, dict):
-            raise ConfigError(f"config section {name!r} must be a table of parameters")
-        changes[name] = _replace_section(getattr(cfg, name), name, values)
-    return dataclasses.replace(cfg, **changes)
+        if name.replace("-", "_") in section_names() and not isinstance(values, dict):
+            raise ConfigError(
+                f"config section {name!r} must be a table of parameters ({name}.param=value)"
+            )
+    return _replace_section(cfg, "", overrides)
 
 
-def parse_set(items: list[str]) -> dict[str, dict[str, Any]]:
-    """Parse ``["section.param=value", ...]`` into ``{section: {param: value}}``."""
-    out: dict[str, dict[str, Any]] = {}
+def parse_set(items: list[str]) -> dict[str, Any]:
+    """Parse ``["path.param=value", ...]`` into a nested ``{section: {...: value}}`` table; a
+    later item wins over an earlier one on the same key."""
+    out: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")
-        section, dot, param = key.strip().partition(".")
-        if not sep or not dot or not section or not param:
+        parts = [p.strip() for p in key.strip().split(".")]
+        if not sep or len(parts) < 2 or not all(parts):
             raise ConfigError(f"--set {item!r}: expected section.param=value")
-        out.setdefault(section, {})[param] = value.strip()
+        node = out
+        for p in parts[:-1]:
+            if not isinstance(node.get(p), dict):
+                node[p] = {}
+            node = node[p]
+        node[parts[-1]] = value.strip()
     return out
 
 
 def load_config(path: str | Path | None = None, sets: list[str] | None = None) -> PipelineConfig:
-    """Defaults, then the TOML file ``path``, then the ``--set`` items."""
+    """Defaults, then the TOML file ``path``, then the ``--set`` items.
+
+    Examples
+    --------
+    >>> cfg = load_config(None, ["dual.decider.psr_confident=8", "dual.groups=default"])
+    >>> cfg.dual.decider.psr_confident, cfg.dual.groups is not None
+    (8.0, True)
+    >>> load_config(None, ["dual.appearance=none"]).dual.appearance is None
+    True
+    """
     cfg = PipelineConfig()
     if path is not None:
         p = Path(path)
@@ -219,18 +308,35 @@ def load_config(path: str | Path | None = None, sets: list[str] | None = None) -
             raise ConfigError(f"cannot read the config file {p}: {exc.strerror}") from None
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"{p}: not valid TOML ({exc})") from None
-        cfg = apply_overrides(cfg, data)
+        try:
+            cfg = apply_overrides(cfg, data)
+        except ConfigError as exc:
+            raise ConfigError(f"{p}: {exc}") from None
     if sets:
         cfg = apply_overrides(cfg, parse_set(sets))
     return cfg
 
 
-def config_to_dict(cfg: PipelineConfig) -> dict[str, dict[str, Any]]:
-    """Plain dict of the resolved config (for summary.json and the .rrd)."""
-    out = {}
-    for f in dataclasses.fields(cfg):
-        out[f.name] = {
-            k: (list(v) if isinstance(v, tuple) else v)
-            for k, v in dataclasses.asdict(getattr(cfg, f.name)).items()
-        }
+def section_to_dict(section: Any) -> Any:
+    """Plain nested dict of a section (None for a part left out), for JSON."""
+    if section is None:
+        return None
+    out: dict[str, Any] = {}
+    subs = sub_sections(type(section))
+    for f in dataclasses.fields(section):
+        v = getattr(section, f.name)
+        out[f.name] = (
+            section_to_dict(v) if f.name in subs else (list(v) if isinstance(v, tuple) else v)
+        )
     return out
+
+
+def config_to_dict(cfg: PipelineConfig, tracker: str | None = None) -> dict[str, Any]:
+    """Plain dict of the resolved configuration (for summary.json and the .rrd): every section,
+    or with ``tracker`` only the ones that tracker runs with and the recording's."""
+    names = (
+        section_names() if tracker is None else [TRACKER_SECTIONS.get(tracker, tracker), "rerun"]
+    )
+    if tracker == "camshift":
+        names.insert(1, "opencv")
+    return {n: section_to_dict(getattr(cfg, n)) for n in names if hasattr(cfg, n)}

@@ -240,7 +240,7 @@ def run_track(
     if opts.tracker in NEEDS_NO_INIT:
         targets = []
     elif detected_ids:
-        targets = detect_init(seq, cfg)
+        targets = detect_init(seq, cfg.detect)
     else:
         targets = resolve_init(seq, opts.init, opts.init_file, opts.channel)
     out = Path(opts.out_dir) if opts.out_dir is not None else Path("runs") / seq.name
@@ -254,7 +254,7 @@ def run_track(
         "frames_total": seq.n_frames,
         "targets": [{"id": t.id, "box": list(t.box.as_tuple())} for t in targets],
         "ids": "detected" if detected_ids else "given",
-        "config": config_to_dict(cfg),
+        "config": config_to_dict(cfg, opts.tracker),
         "version": __version__,
         "seed": seq.meta.get("seed") if isinstance(seq.meta.get("seed"), int) else None,
         "stage_seconds": {},
@@ -297,7 +297,7 @@ def run_track(
                     [t.id for t in targets],
                     cfg.rerun,
                     seq.name,
-                    config_to_dict(cfg),
+                    config_to_dict(cfg, opts.tracker),
                     has_truth,
                     start,
                 )

@@ -1,40 +1,153 @@
-"""The trackers' own parameters: ``dual``, ``camshift`` and ``opencv`` sections.
+"""The trackers' own configuration trees: one section per tracker, one sub-section per part.
 
-They live beside the stage sections (``pipeline.stages.*``) rather than in the trackers, so
-that :mod:`pipeline.config` gathers every section without importing a tracker and the
-trackers take the typed :class:`pipeline.config.PipelineConfig`.
+A tracker's section (``dual``, ``meanshift``, ``kalman_camshift``, ``detect``; the peers'
+``camshift`` and ``opencv``) holds the sections of the parts it is built from, each a frozen
+dataclass with its own parameters; the stage sections (``pipeline.stages.*``) appear under
+every tracker that runs the stage. The keys of ``--set`` and of a TOML file follow that tree::
+
+    dualtrack track SEQ --set dual.decider.psr_confident=8 --set dual.levelset.timestep=0.2
+
+    [dual.appearance]
+    learning_rate = 0.02
+
+A part that a tracker may run without is an optional section: ``dual.appearance``,
+``dual.extent``, ``dual.redetect`` and ``dual.groups`` are ``none`` to leave the part out
+(``--set dual.groups=none``; ``--set dual.groups=default`` or any of its keys puts it in).
+
+The tree lives here rather than in the trackers, so that :mod:`pipeline.config` gathers it
+without importing a tracker.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from pipeline.params import Section, param
+from pipeline.stages.appearance import AppearanceConfig
+from pipeline.stages.association import AssociationConfig
+from pipeline.stages.contour import ContourConfig
+from pipeline.stages.detection import DetectionConfig
+from pipeline.stages.extent import ExtentConfig
+from pipeline.stages.histogram import HistogramConfig
+from pipeline.stages.kalman import KalmanConfig
+from pipeline.stages.levelset import LevelSetConfig
+from pipeline.stages.meanshift import MeanShiftConfig
+from pipeline.stages.model_update import ModelUpdateConfig
+from pipeline.stages.occlusion import OcclusionConfig
+from pipeline.stages.roi_match import RoiMatchConfig
 
 
 @dataclass(frozen=True)
-class DualConfig(Section):
-    """The dual-channel tracker: what each cue may do, and when a target counts as hidden or gone.
+class MotionConfig(Section):
+    """The dual tracker's motion part: where each search starts, and how a hidden target coasts.
 
-    The paper's method (Zhao, Bo, Yin 2012) is the configuration with every addition off
-    (``data/dual-paper.toml``): mean shift in the visible frame, the DRLSE contour in the IR
-    frame for position and size, eq. 7 for the scale and eq. 8-9 for the model.
+    The Kalman model itself is the ``kalman`` section beside this one.
 
     Parameters
     ----------
-    scale_rate : float
-        a_s of eq. 7: the weight of the contour's size in the size update, in [0, 1]; default
-        0.2. Increasing it follows size changes faster and passes contour noise on.
-    appearance_cue : bool
-        Beyond the paper: a correlation filter over both channels (``pipeline.stages.
-        appearance``) measures position and size; it decides where the contour and the
-        colour disagree; default True.
-    extent_cue : bool
-        Beyond the paper: the box's width and height also follow the target's extent in its
-        colours (``pipeline.stages.extent``), each on its own, at ``scale_rate``; the size may
-        then leave the filter's by up to ``extent.max_ratio`` per axis; default True. A walking
-        person's legs, a turning car or a cyclist change the box's aspect, which the filter's
-        scale (one factor for both axes) cannot follow.
+    search_from : str
+        Where every search of a frame starts: ``prediction`` (default, beyond the paper: the
+        Kalman prediction, which also carries hidden targets) or ``last-position`` (the
+        paper: where the target was in the previous frame).
+    history_frames : int
+        Clean measurements kept for the coasting line fit, in [2, 100]; default 16.
+    rewind_frames : int
+        When an occlusion starts, the coast restarts from a straight line through the recent
+        clean measurements if its newest one is at most this old, in [0, 30]; default 8; 0
+        never.
+    onset_frames : int
+        The newest measurements left out of that fit (an occluder may have been cutting them
+        already), in [0, 10]; default 4.
+    """
+
+    section = "motion"
+
+    search_from: str = param("prediction", choices=("prediction", "last-position"))
+    history_frames: int = param(16, ge=2, le=100)
+    rewind_frames: int = param(8, ge=0, le=30)
+    onset_frames: int = param(4, ge=0, le=10)
+
+
+@dataclass(frozen=True)
+class ColourConfig(Section):
+    """The dual tracker's colour cue (the paper's step 2): when it runs and where it searches.
+
+    The histogram, the mean shift and the selective model update (eq. 8-9) are the
+    ``histogram``, ``meanshift`` and ``model_update`` sections beside this one.
+
+    Parameters
+    ----------
+    dark_gating : bool
+        Beyond the paper: the colour cue is skipped where too few of the kernel's pixels are
+        bright enough to carry colour (dusk, darkness); default True (False runs it always,
+        as the paper does).
+    min_value : int
+        Visible pixels darker than this (HSV value) carry no colour, in [0, 255]; default 40.
+    min_fraction : float
+        With ``dark_gating``, the colour cue runs when at least this share of the kernel's
+        pixels is bright enough, in [0, 1]; default 0.3.
+    missing_search_scale : float
+        While a target is missing, its colour search region is this many times larger, in
+        [1, 5]; default 2.
+    """
+
+    section = "colour"
+
+    dark_gating: bool = True
+    min_value: int = param(40, ge=0, le=255)
+    min_fraction: float = param(0.3, ge=0, le=1)
+    missing_search_scale: float = param(2.0, ge=1, le=5)
+
+
+@dataclass(frozen=True)
+class RedetectConfig(Section):
+    """The dual tracker's re-detector: the search for a hidden or lost target.
+
+    A missing target is looked for by its correlation filter in a region that widens while it
+    is missing and, after ``global_after_frames``, at the regions the detector (the
+    ``detection`` sub-section) finds in the whole frame.
+
+    Parameters
+    ----------
+    radius_px_per_frame : float
+        The search region around a hidden target's prediction grows by this per missing
+        frame, px, >= 0; default 3.
+    last_seen : bool
+        The widening search region lies around the hidden target's last clean measurement as
+        well as around its prediction (the candidates shared between the two), and widens at
+        the target's recent speed where that exceeds ``radius_px_per_frame``, so that a target
+        that turned or stopped while hidden is found where it was; default True.
+    global_after_frames : int
+        Missing frames after which the whole frame is searched, >= 1; default 12.
+    every_frames : int
+        A missing target is searched for every this many frames, >= 1; default 2.
+    candidates : int
+        At most this many places are tried by one search, >= 1; default 12 (a larger region
+        is covered over successive searches). The cost of a search grows with it.
+    detection : DetectionConfig
+        The detector of the whole-frame search (run on the IR frame, the visible one without
+        IR; its visible-channel regions are never asked for).
+    """
+
+    section = "redetect"
+
+    radius_px_per_frame: float = param(3.0, ge=0)
+    last_seen: bool = True
+    global_after_frames: int = param(12, ge=1)
+    every_frames: int = param(2, ge=1)
+    candidates: int = param(12, ge=1)
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
+
+
+@dataclass(frozen=True)
+class DeciderConfig(Section):
+    """The dual tracker's decision: which cue's measurement a target takes in a frame.
+
+    The rules themselves are :class:`pipeline.trackers.dual.decide.Rule`, in order; these are
+    their thresholds.
+
+    Parameters
+    ----------
     psr_confident : float
         A correlation-filter detection is a measurement when its peak-to-sidelobe ratio
         reaches this, >= 0; default 7. Increasing it trusts the filter less often.
@@ -42,12 +155,13 @@ class DualConfig(Section):
         The filter learns only from frames whose detection reaches this PSR, >= 0; default 6.
     psr_reacquire : float
         A hidden target is taken back by the filter alone at this PSR, >= 0; default 9.
+    weak_psr_fraction : float
+        A coasting target whose filter peak reaches this share of ``psr_confident`` is still
+        partly seen (``occluded-partial`` rather than ``occluded-severe``), in [0, 1];
+        default 0.5.
     agree_fraction : float
-        The contour and the filter agree when their centres are within this share of the
-        target's size on each axis, in (0, 2]; default 0.35.
-    scale_agree_ratio : float
-        A contour whose width or height differs from the filter's size by more than this
-        factor is not used for the size, > 1; default 1.25.
+        Two cues agree when their centres are within this share of the target's size on each
+        axis, in (0, 2]; default 0.35.
     jump_fraction : float
         A tracked target's measurement lies within this share of its size (on each axis) of
         its prediction or of its last box; one farther is not taken, in (0, 5]; default 0.75.
@@ -57,49 +171,16 @@ class DualConfig(Section):
         (its first frames, or after it was found again) may move by more than a share of its
         size: a 10 px wide person walking 8 px a frame; once its motion is known the
         prediction's deviation shrinks to a few px and the reach to about ``jump_fraction``.
+    colour_min_rho : float
+        A colour match under this contradicts a measurement at that place, in [0, 1];
+        default 0.6.
     colour_veto_margin : float
         Where the colour is seen, a contour or a filter detection whose colour match is under
         ``colour_min_rho`` is not taken when the mean shift matches this much better
         elsewhere, in (0, 1]; default 0.2.
-    contour_checks : bool
-        Beyond the paper: a contour that leaks, collapses, grows too large, changes shape or
-        loses its contrast is not a measurement; default True (False uses any contour, as
-        the paper does).
-    channel_weighting : bool
-        Beyond the paper: skip the colour cue in dark frames and distrust a faded contour;
-        default True.
-    motion_prior : bool
-        Beyond the paper: a Kalman prediction starts every search, carries hidden targets
-        and gates their re-acquisition; default True (False starts from the last position).
-    redetect : bool
-        Beyond the paper: a hidden or lost target is searched for by its filter in a region
-        that widens while it is missing and, after ``redetect_global_after_frames``, at the
-        regions the detector (``detection`` section) finds in the whole frame; default True.
-    redetect_radius_px_per_frame : float
-        The search region around a hidden target's prediction grows by this per missing
-        frame, px, >= 0; default 3.
-    redetect_last_seen : bool
-        The widening search region lies around the hidden target's last clean measurement as
-        well as around its prediction (the candidates shared between the two), and widens at
-        the target's recent speed where that exceeds ``redetect_radius_px_per_frame``, so that
-        a target that turned or stopped while hidden is found where it was; default True.
-    redetect_global_after_frames : int
-        Missing frames after which the whole frame is searched, >= 1; default 12.
-    redetect_every_frames : int
-        A missing target is searched for every this many frames, >= 1; default 2.
-    redetect_candidates : int
-        At most this many places are tried by one search, >= 1; default 12 (a larger region
-        is covered over successive searches). The cost of a search grows with it.
-    colour_min_value : int
-        Visible pixels darker than this (HSV value) carry no colour, in [0, 255]; default 40.
-    colour_min_fraction : float
-        The colour cue runs when at least this share of the kernel's pixels is bright enough,
-        in [0, 1]; default 0.3.
-    colour_min_rho : float
-        A colour match under this contradicts a measurement at that place, in [0, 1];
-        default 0.6.
     occlusion_rho : float
-        A colour match this strong carries a target whose IR has faded, in [0, 1]; default 0.75.
+        A colour match this strong carries a target whose IR has faded, in [0, 1]; default
+        0.75.
     colour_trust_rho : float
         A colour match this strong carries a target with no other measurement, in [0, 1];
         default 0.85; 1 never.
@@ -112,47 +193,106 @@ class DualConfig(Section):
     reacquire_gate_px_per_frame : float
         A hidden target is taken back near its prediction: within half its size plus this
         many px per missing frame, >= 0; default 1 (re-detection by the filter widens it).
+    noise_scale_contour : float
+        The Kalman measurement noise of a contour measurement, as a multiple of the
+        ``kalman`` section's, > 0; default 1.
+    noise_scale_appearance : float
+        The same for a filter detection, > 0; default 1.5 (its box follows the filter's
+        template, which lags a change of shape).
+    noise_scale_colour : float
+        The same for a mean-shift position, > 0; default 2 (the kernel's centre of colour
+        mass, not of the target).
+    """
+
+    section = "decider"
+
+    psr_confident: float = param(7.0, ge=0)
+    psr_update: float = param(6.0, ge=0)
+    psr_reacquire: float = param(9.0, ge=0)
+    weak_psr_fraction: float = param(0.5, ge=0, le=1)
+    agree_fraction: float = param(0.35, gt=0, le=2)
+    jump_fraction: float = param(0.75, gt=0, le=5)
+    jump_sigma: float = param(3.0, ge=0)
+    colour_min_rho: float = param(0.6, ge=0, le=1)
+    colour_veto_margin: float = param(0.2, gt=0, le=1)
+    occlusion_rho: float = param(0.75, ge=0, le=1)
+    colour_trust_rho: float = param(0.85, ge=0, le=1)
+    partial_area_ratio: float = param(0.6, gt=0, lt=1)
+    reacquire_rho: float = param(0.7, ge=0, le=1)
+    reacquire_gate_px_per_frame: float = param(1.0, ge=0)
+    noise_scale_contour: float = param(1.0, gt=0)
+    noise_scale_appearance: float = param(1.5, gt=0)
+    noise_scale_colour: float = param(2.0, gt=0)
+
+
+@dataclass(frozen=True)
+class SizeConfig(Section):
+    """The dual tracker's size: how the box's width and height follow the cues.
+
+    Parameters
+    ----------
+    scale_rate : float
+        a_s of eq. 7: the weight of a measured size in the size update, in [0, 1]; default
+        0.2. Increasing it follows size changes faster and passes measurement noise on.
+    scale_agree_ratio : float
+        A contour whose width or height differs from the filter's size by more than this
+        factor is not used for the size, and the size stays within this factor of the
+        filter's, > 1; default 1.25.
+    contour_contrast_ratio : float
+        A contour's size enters the update only where its contrast is at least this many
+        times ``contour.min_contrast``, >= 1; default 2 (a faint contour's box is loose).
+    """
+
+    section = "size"
+
+    scale_rate: float = param(0.2, ge=0, le=1)
+    scale_agree_ratio: float = param(1.25, gt=1)
+    contour_contrast_ratio: float = param(2.0, ge=1)
+
+
+@dataclass(frozen=True)
+class LifecycleConfig(Section):
+    """The dual tracker's lifecycle: when a hidden target is lost, and what ``conf`` says.
+
+    Parameters
+    ----------
     max_missing_frames : int
         Frames without a measurement before a target is reported lost, >= 1; default 50. A
         lost target is still searched for (``redetect``).
-    missing_search_scale : float
-        While a target is missing, its colour search region is this many times larger, in
-        [1, 5]; default 2.
-    history_frames : int
-        Clean measurements kept for the coasting line fit, in [2, 100]; default 16.
-    rewind_frames : int
-        The coast restarts from that fit if its newest measurement is at most this old, in
-        [0, 30]; default 8; 0 never.
-    onset_frames : int
-        The newest measurements left out of that fit (an occluder may have been cutting them
-        already), in [0, 10]; default 4.
-    merge_handling : bool
-        Handle mutual occlusion as the paper does (eq. 10 merge test, foreground and occluded
-        roles, one level set over the merged blob, split and re-association; status
-        ``merged`` and the merge and split events); default False: with the correlation
-        filter every target keeps itself through a crossing better on its own (True is the
-        paper's, and ``data/dual-paper.toml`` sets it).
+    confidence_tracking : float
+        ``conf`` of a tracked target's row in tracks.csv, in [0, 1]; default 1.
+    confidence_partial : float
+        ``conf`` of a partly occluded one, in [0, 1]; default 0.6.
+    confidence_severe : float
+        ``conf`` of a severely occluded one (coasting on its motion), in [0, 1]; default 0.3.
+    """
+
+    section = "lifecycle"
+
+    max_missing_frames: int = param(50, ge=1)
+    confidence_tracking: float = param(1.0, ge=0, le=1)
+    confidence_partial: float = param(0.6, ge=0, le=1)
+    confidence_severe: float = param(0.3, ge=0, le=1)
+
+
+@dataclass(frozen=True)
+class GroupConfig(Section):
+    """The dual tracker's group handling: targets in mutual occlusion (the paper's eq. 10-11).
+
+    The eq. 10 merge test on the mean-shift positions joins targets into a group; one level set
+    runs over the group's blob, started from the members' positions; each member is placed in
+    it (``merge_position``) with status ``merged`` and no model learns; when the blob shows a
+    component for every member, the group splits and the components are re-associated
+    globally.
+
+    Parameters
+    ----------
     merge_position : str
         Where merged members are placed: ``eq11`` (the paper: the foreground at its mean
         shift, the other mirrored about the blob centre), ``motion`` (the foreground as in
         the paper, the others at their prediction) or ``auto`` (default: look-alikes by
         k-means on the blob, every member whose colour is clearly seen by its own mean shift,
         the rest by eq. 11 while the blob is wider than the foreground, else by motion).
-    lookalike_rho : float
-        Two targets whose colour models match this well are look-alikes, in [0, 1]; default 0.85.
-    merge_visible_rho : float
-        In ``auto``, a merged member whose colour match reaches this is placed by its own
-        mean shift, in [0, 1]; default 0.75.
-    merge_inside_blob : bool
-        A merged member placed on its motion state is reported inside the blob's box;
-        default True.
-    split_hold_frames : int
-        For this many frames after a split, targets merge again only on a deep overlap
-        (``remerge_scale``), >= 0; default 3.
-    remerge_scale : float
-        The merge test's half-sizes are scaled by this during that hold, in (0, 1]; default 0.8.
-    kmeans_iterations : int
-        Passes of the k-means that places look-alikes in a blob, in [1, 50]; default 5.
     role_margin : float
         The foreground keeps its role until another member's colour match is higher by this,
         in [0, 1]; default 0.05.
@@ -163,54 +303,199 @@ class DualConfig(Section):
         Weight of the distance to each prediction (in target sizes) against the colour
         dissimilarity when blobs are re-associated after a split, >= 0; default 1 (0 is the
         paper: colour only).
+    lookalike_rho : float
+        Two targets whose colour models match this well are look-alikes, in [0, 1]; default
+        0.85.
+    merge_visible_rho : float
+        In ``auto``, a merged member whose colour match reaches this is placed by its own
+        mean shift, in [0, 1]; default 0.75.
+    inside_blob : bool
+        A merged member placed on its motion state is reported inside the blob's box;
+        default True.
+    split_hold_frames : int
+        For this many frames after a split, targets merge again only on a deep overlap
+        (``remerge_scale``), >= 0; default 3.
+    remerge_scale : float
+        The merge test's half-sizes are scaled by this during that hold, in (0, 1]; default
+        0.8.
+    kmeans_iterations : int
+        Passes of the k-means that places look-alikes in a blob, in [1, 50]; default 5.
+    blob_cold_start_scale : float
+        The group's level set starts cold from the union of the members' boxes times this, in
+        [1, 2]; default 1.15.
+    blob_max_ratio : float
+        The group's contour is not refused as too large or misshapen below this multiple of
+        the union's area and sides (it holds several targets), > 1; default 50.
+    blob_margin_scale : float
+        A component of the group's contour belongs to the group when it meets the union of
+        the members' boxes grown this many times, >= 1; default 1.2.
+    wider_ratio : float
+        In ``auto``, the blob counts as wider than the foreground (eq. 11 places the other
+        member) when its width exceeds the foreground's by this factor, >= 1; default 1.2.
+    confidence_foreground : float
+        ``conf`` of the group's foreground member in tracks.csv, in [0, 1]; default 0.7.
+    confidence_hidden : float
+        ``conf`` of the other members, in [0, 1]; default 0.4.
     """
 
-    section = "dual"
+    section = "groups"
 
-    scale_rate: float = param(0.2, ge=0, le=1)
-    appearance_cue: bool = True
-    extent_cue: bool = True
-    psr_confident: float = param(7.0, ge=0)
-    psr_update: float = param(6.0, ge=0)
-    psr_reacquire: float = param(9.0, ge=0)
-    agree_fraction: float = param(0.35, gt=0, le=2)
-    scale_agree_ratio: float = param(1.25, gt=1)
-    colour_veto_margin: float = param(0.2, gt=0, le=1)
-    jump_sigma: float = param(3.0, ge=0)
-    jump_fraction: float = param(0.75, gt=0, le=5)
-    contour_checks: bool = True
-    channel_weighting: bool = True
-    motion_prior: bool = True
-    redetect: bool = True
-    redetect_radius_px_per_frame: float = param(3.0, ge=0)
-    redetect_last_seen: bool = True
-    redetect_global_after_frames: int = param(12, ge=1)
-    redetect_every_frames: int = param(2, ge=1)
-    redetect_candidates: int = param(12, ge=1)
-    colour_min_value: int = param(40, ge=0, le=255)
-    colour_min_fraction: float = param(0.3, ge=0, le=1)
-    colour_min_rho: float = param(0.6, ge=0, le=1)
-    occlusion_rho: float = param(0.75, ge=0, le=1)
-    colour_trust_rho: float = param(0.85, ge=0, le=1)
-    partial_area_ratio: float = param(0.6, gt=0, lt=1)
-    reacquire_rho: float = param(0.7, ge=0, le=1)
-    reacquire_gate_px_per_frame: float = param(1.0, ge=0)
-    max_missing_frames: int = param(50, ge=1)
-    missing_search_scale: float = param(2.0, ge=1, le=5)
-    history_frames: int = param(16, ge=2, le=100)
-    rewind_frames: int = param(8, ge=0, le=30)
-    onset_frames: int = param(4, ge=0, le=10)
-    merge_handling: bool = False
     merge_position: str = param("auto", choices=("auto", "eq11", "motion"))
     role_margin: float = param(0.05, ge=0, le=1)
     split_min_area_fraction: float = param(0.3, gt=0, lt=1)
     association_motion_weight: float = param(1.0, ge=0)
     lookalike_rho: float = param(0.85, ge=0, le=1)
     merge_visible_rho: float = param(0.75, ge=0, le=1)
-    merge_inside_blob: bool = True
+    inside_blob: bool = True
     split_hold_frames: int = param(3, ge=0)
     remerge_scale: float = param(0.8, gt=0, le=1)
     kmeans_iterations: int = param(5, ge=1, le=50)
+    blob_cold_start_scale: float = param(1.15, ge=1, le=2)
+    blob_max_ratio: float = param(50.0, gt=1)
+    blob_margin_scale: float = param(1.2, ge=1)
+    wider_ratio: float = param(1.2, ge=1)
+    confidence_foreground: float = param(0.7, ge=0, le=1)
+    confidence_hidden: float = param(0.4, ge=0, le=1)
+
+
+@dataclass(frozen=True)
+class DualConfig(Section):
+    """The dual-channel tracker (``dual``), one section per part it is built from.
+
+    ========================== ======================================================
+    part                       sections
+    ========================== ======================================================
+    motion (Kalman)            ``motion``, ``kalman``
+    colour cue (mean shift)    ``colour``, ``histogram``, ``meanshift``, ``model_update``
+    contour cue (level set)    ``contour``, ``levelset``
+    appearance cue (filter)    ``appearance`` (optional)
+    colour extent              ``extent`` (optional)
+    re-detector                ``redetect`` (optional; its ``detection``)
+    decider                    ``decider``
+    size                       ``size``
+    lifecycle                  ``lifecycle``
+    group handling (eq. 10-11) ``groups`` (optional)
+    ========================== ======================================================
+
+    The paper's method (Zhao, Bo, Yin 2012) is :meth:`paper` (``data/dual-paper.toml``): no
+    filter, extent or re-detector, every contour taken, the search from the last position,
+    and eq. 10-11 for targets in mutual occlusion.
+
+    Parameters
+    ----------
+    motion : MotionConfig
+        Where the searches start, and coasting.
+    kalman : KalmanConfig
+        The motion part's Kalman model.
+    colour : ColourConfig
+        When the colour cue runs and where it searches.
+    histogram : HistogramConfig
+        The colour cue's histogram binning.
+    meanshift : MeanShiftConfig
+        The colour cue's mean shift.
+    model_update : ModelUpdateConfig
+        The colour model's selective update (eq. 8-9).
+    contour : ContourConfig
+        The contour cue: region, starts and failure tests of the IR contour.
+    levelset : LevelSetConfig
+        The contour cue's DRLSE level set.
+    appearance : AppearanceConfig or None
+        Beyond the paper: a correlation filter over both channels measures position and
+        size and decides where the contour and the colour disagree; None leaves it out.
+    extent : ExtentConfig or None
+        Beyond the paper: the box's width and height also follow the target's extent in its
+        colours, each on its own, at ``size.scale_rate``; None leaves it out. A walking
+        person's legs, a turning car or a cyclist change the box's aspect, which the
+        filter's scale (one factor for both axes) cannot follow.
+    redetect : RedetectConfig or None
+        Beyond the paper: the search for a hidden or lost target; None leaves it out.
+    decider : DeciderConfig
+        The thresholds of the decision between the cues.
+    size : SizeConfig
+        How the box's size follows the cues (eq. 7).
+    lifecycle : LifecycleConfig
+        When a hidden target is lost; the confidence of each status.
+    groups : GroupConfig or None
+        The paper's handling of mutual occlusion (eq. 10-11: the merge test, one level set
+        over the merged blob, the split and re-association; status ``merged``); default
+        None: with the correlation filter every target keeps itself through a crossing
+        better on its own.
+    """
+
+    section = "dual"
+
+    motion: MotionConfig = field(default_factory=MotionConfig)
+    kalman: KalmanConfig = field(default_factory=KalmanConfig)
+    colour: ColourConfig = field(default_factory=ColourConfig)
+    histogram: HistogramConfig = field(default_factory=HistogramConfig)
+    meanshift: MeanShiftConfig = field(default_factory=MeanShiftConfig)
+    model_update: ModelUpdateConfig = field(default_factory=ModelUpdateConfig)
+    contour: ContourConfig = field(default_factory=ContourConfig)
+    levelset: LevelSetConfig = field(default_factory=LevelSetConfig)
+    appearance: AppearanceConfig | None = field(default_factory=AppearanceConfig)
+    extent: ExtentConfig | None = field(default_factory=ExtentConfig)
+    redetect: RedetectConfig | None = field(default_factory=RedetectConfig)
+    decider: DeciderConfig = field(default_factory=DeciderConfig)
+    size: SizeConfig = field(default_factory=SizeConfig)
+    lifecycle: LifecycleConfig = field(default_factory=LifecycleConfig)
+    groups: GroupConfig | None = None
+
+    @classmethod
+    def paper(cls) -> DualConfig:
+        """The paper's dual tracker (Zhao, Bo, Yin 2012): every addition left out.
+
+        Mean shift in the visible frame from the last position, the DRLSE contour (started
+        cold, every contour taken) in the IR frame for position and size, eq. 7 for the
+        scale, eq. 8-9 for the model, and eq. 10-11 for targets in mutual occlusion
+        (re-association by colour alone). ``data/dual-paper.toml`` is the same
+        configuration as a file.
+
+        Examples
+        --------
+        >>> cfg = DualConfig.paper()
+        >>> cfg.appearance is None, cfg.groups.merge_position, cfg.motion.search_from
+        (True, 'eq11', 'last-position')
+        """
+        return cls(
+            motion=MotionConfig(search_from="last-position"),
+            colour=ColourConfig(dark_gating=False),
+            contour=ContourConfig(
+                checks=False,
+                trust_faded=True,
+                start_at="meanshift",
+                warm_start=False,
+                closing_fraction=0.0,
+            ),
+            appearance=None,
+            extent=None,
+            redetect=None,
+            decider=DeciderConfig(colour_trust_rho=1.0),
+            groups=GroupConfig(
+                merge_position="eq11",
+                inside_blob=False,
+                split_hold_frames=0,
+                association_motion_weight=0.0,
+            ),
+        )
+
+
+@dataclass(frozen=True)
+class MeanShiftTrackerConfig(Section):
+    """The ``meanshift`` tracker: kernel-weighted colour histogram mean shift with a scale
+    search.
+
+    Parameters
+    ----------
+    histogram : HistogramConfig
+        The histogram binning.
+    search : MeanShiftConfig
+        The mean shift and its +-10 % scale search.
+    """
+
+    section = "meanshift"
+
+    histogram: HistogramConfig = field(default_factory=HistogramConfig)
+    search: MeanShiftConfig = field(default_factory=MeanShiftConfig)
 
 
 @dataclass(frozen=True)
@@ -286,3 +571,54 @@ class OpenCVTrackerConfig(Section):
     section = "opencv"
 
     channel: str = param("visible", choices=("visible", "infrared"))
+
+
+@dataclass(frozen=True)
+class KalmanCamShiftConfig(Section):
+    """The ``kalman-camshift`` tracker (Yan et al. 2014): CamShift from a Kalman prediction,
+    with graded occlusion.
+
+    Parameters
+    ----------
+    channel : str
+        Channel it runs on in two-channel sequences, ``visible`` or ``infrared``; default
+        ``visible``.
+    camshift : CamShiftConfig
+        The CamShift search and its colour model.
+    kalman : KalmanConfig
+        The 12-state motion model.
+    occlusion : OcclusionConfig
+        The occlusion grading by Bhattacharyya distance and area.
+    """
+
+    section = "kalman_camshift"
+
+    channel: str = param("visible", choices=("visible", "infrared"))
+    camshift: CamShiftConfig = field(default_factory=CamShiftConfig)
+    kalman: KalmanConfig = field(default_factory=KalmanConfig)
+    occlusion: OcclusionConfig = field(default_factory=OcclusionConfig)
+
+
+@dataclass(frozen=True)
+class DetectConfig(Section):
+    """The ``detect`` tracker: detection, Kalman prediction and global association (no
+    initial boxes); also what ``dualtrack detect`` and ``track --detect`` run.
+
+    Parameters
+    ----------
+    detection : DetectionConfig
+        STDM / foreground detection and ROI discrimination.
+    roi_match : RoiMatchConfig
+        The affine-invariant ROI correlation (the image term of the association).
+    association : AssociationConfig
+        Global association, track birth and death.
+    kalman : KalmanConfig
+        The tracks' motion model (made constant-velocity with the association's noises).
+    """
+
+    section = "detect"
+
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    roi_match: RoiMatchConfig = field(default_factory=RoiMatchConfig)
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+    kalman: KalmanConfig = field(default_factory=KalmanConfig)

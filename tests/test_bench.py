@@ -136,13 +136,13 @@ def test_the_cpu_rate_counts_only_the_trackers_own_work(scene, monkeypatch, tmp_
     from pipeline.run import RunOptions, run_track
     from pipeline.trackers import base
 
-    slow_step = base.FunctionalEngine.step
+    slow_step = base.CoreEngine.step
 
     def waiting(self, frames):
         time.sleep(0.02)
         return slow_step(self, frames)
 
-    monkeypatch.setattr(base.FunctionalEngine, "step", waiting)
+    monkeypatch.setattr(base.CoreEngine, "step", waiting)
     s = run_track(
         scene("pole-fast"),
         RunOptions(

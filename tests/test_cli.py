@@ -102,13 +102,13 @@ def test_bad_set_and_bad_option(tmp_path, capsys):
             "track",
             _tiny(tmp_path / "s"),
             "--set",
-            "meanshift.max_iterations=-1",
+            "meanshift.search.max_iterations=-1",
             "--out",
             tmp_path / "o",
         ],
         capsys,
     )
-    _assert_one_line_error(rc, err, "meanshift.max_iterations")
+    _assert_one_line_error(rc, err, "meanshift.search.max_iterations")
     with pytest.raises(SystemExit) as ex:
         main(["track", "--no-such-option"])
     assert ex.value.code == 1

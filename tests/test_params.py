@@ -8,11 +8,13 @@ import typing
 
 import pytest
 
-from pipeline.config import PipelineConfig, load_config
+from pipeline.config import load_config, sub_sections, walk_sections
 from pipeline.errors import ConfigError
 from pipeline.params import Range, Section, param
 
-SECTIONS = [(f.name, f.default_factory) for f in dataclasses.fields(PipelineConfig)]
+_TREE = walk_sections(load_config(None, ["dual.groups=default"]))
+SECTIONS = sorted({(type(s).section, type(s)) for _, s in _TREE}, key=lambda x: x[1].__name__)
+"""Every section class of the configuration tree, with its own name."""
 
 
 def _doc_entries(doc: str) -> dict[str, str]:
@@ -70,6 +72,9 @@ def test_every_field_is_documented_and_its_range_is_the_documented_one(name, cls
     entries = _doc_entries(cls.__doc__)
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
+        if f.name in sub_sections(cls):
+            assert f.name in entries, f"{name}.{f.name} is not in the {cls.__name__} docstring"
+            continue
         assert f.name in entries, f"{name}.{f.name} is not in the {cls.__name__} docstring"
         r = f.metadata.get("range")
         if hints[f.name] in (int, float):
@@ -116,23 +121,42 @@ def test_defaults_pass_and_each_bound_refuses_the_value_beyond_it(name, cls):
 
 def test_the_cli_path_names_the_parameter_and_the_range():
     with pytest.raises(
-        ConfigError, match=r"histogram\.hue_bins must be an integer in \[2, 180\]; got 1"
+        ConfigError,
+        match=r"^dual\.histogram\.hue_bins must be an integer in \[2, 180\]; got 1$",
     ):
-        load_config(sets=["histogram.hue_bins=1"])
+        load_config(sets=["dual.histogram.hue_bins=1"])
     with pytest.raises(
-        ConfigError, match=r"appearance\.scale_count must be an odd integer in \[3, 33\]; got 4"
+        ConfigError,
+        match=r"^dual\.appearance\.scale_count must be an odd integer in \[3, 33\]; got 4$",
     ):
-        load_config(sets=["appearance.scale_count=4"])
+        load_config(sets=["dual.appearance.scale_count=4"])
     with pytest.raises(
-        ConfigError, match=r"dual\.merge_position must be one of 'auto', 'eq11', 'motion'"
+        ConfigError,
+        match=r"^dual\.groups\.merge_position must be one of 'auto', 'eq11', 'motion'",
     ):
-        load_config(sets=["dual.merge_position=x"])
+        load_config(sets=["dual.groups.merge_position=x"])
+
+
+@pytest.mark.parametrize("path", [p for p, s in _TREE if dataclasses.fields(s)])
+def test_every_path_of_the_tree_names_itself_in_its_errors(path):
+    """Each section, wherever it sits in the tree, reports a bad value with its full path."""
+    sec = dict(_TREE)[path]
+    hints = typing.get_type_hints(type(sec))
+    for f in dataclasses.fields(sec):
+        r = f.metadata.get("range")
+        if r is None or hints[f.name] not in (int, float):
+            continue
+        bad = _outside(r, f.default)[0]
+        with pytest.raises(ConfigError, match=rf"^{path.replace('.', chr(92) + '.')}\.{f.name} "):
+            load_config(sets=[f"{path}.{f.name}={bad}"])
+        return
+    pytest.skip(f"{path} has no numeric field with a range")
 
 
 def test_rules_over_several_fields_still_hold():
     with pytest.raises(ConfigError, match=r"must be < 0\.25 for stability"):
-        load_config(sets=["levelset.timestep=9"])
-    with pytest.raises(ConfigError, match=r"association\.confirm_hits"):
-        load_config(sets=["association.confirm_hits=9"])
-    with pytest.raises(ConfigError, match=r"detection\.perimeter_px"):
-        load_config(sets=["detection.perimeter_px=50,40"])
+        load_config(sets=["dual.levelset.timestep=9"])
+    with pytest.raises(ConfigError, match=r"detect\.association\.confirm_hits"):
+        load_config(sets=["detect.association.confirm_hits=9"])
+    with pytest.raises(ConfigError, match=r"detect\.detection\.perimeter_px"):
+        load_config(sets=["detect.detection.perimeter_px=50,40"])

@@ -28,19 +28,23 @@ PAPER = ROOT / "data" / "dual-paper.toml"
 
 VARIANTS: dict[str, list[str]] = {
     "full": [],
-    "-appearance": ["dual.appearance_cue=false"],
-    "-redetect": ["dual.redetect=false"],
-    "-extent": ["dual.extent_cue=false"],
-    "-filter-colour": ["appearance.colour=false"],
-    "-filter-visible-gradients": ["appearance.visible_gradients=false"],
-    "-filter-ir": ["appearance.infrared=false"],
-    "-filter-balance": ["appearance.balance_groups=false"],
-    "-filter-scale": ["appearance.scale_filter=false"],
-    "-contour-checks": ["dual.contour_checks=false"],
-    "-channel-weighting": ["dual.channel_weighting=false"],
-    "-motion-prior": ["dual.motion_prior=false"],
-    "-warm-start": ["contour.warm_start=false"],
-    "-closing": ["contour.closing_fraction=0"],
+    "-appearance": ["dual.appearance=none"],
+    "-redetect": ["dual.redetect=none"],
+    "-extent": ["dual.extent=none"],
+    "-filter-colour": ["dual.appearance.colour=false"],
+    "-filter-visible-gradients": ["dual.appearance.visible_gradients=false"],
+    "-filter-ir": ["dual.appearance.infrared=false"],
+    "-filter-balance": ["dual.appearance.balance_groups=false"],
+    "-filter-scale": ["dual.appearance.scale_filter=false"],
+    "-contour-checks": ["dual.contour.checks=false"],
+    "-channel-weighting": [
+        "dual.colour.dark_gating=false",
+        "dual.contour.trust_faded=true",
+        "dual.contour.start_at=meanshift",
+    ],
+    "-motion-prior": ["dual.motion.search_from=last-position", "dual.contour.start_at=meanshift"],
+    "-warm-start": ["dual.contour.warm_start=false"],
+    "-closing": ["dual.contour.closing_fraction=0"],
     "paper": [],  # data/dual-paper.toml
 }
 NAMED = (

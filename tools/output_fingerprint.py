@@ -52,7 +52,7 @@ VARIANTS: dict[str, tuple[str, tuple[str, ...], str | None, tuple[str, ...]]] = 
     ),
     "merge": (
         "dual",
-        ("dual.merge_handling=true",),
+        ("dual.groups=default",),
         None,
         ("crossing2-s0", "crossing3-s0", "meet-part-s0", "group3-s0", "random-11", "random-12"),
     ),

@@ -78,6 +78,18 @@ class ContourConfig(Section):
         (legs, arms) merge into the body instead of being cut by the length term;
         in [0, 1], default 0.25, 0 disables it. Increasing it fills more of a thin
         target and starts to bridge a gap to a neighbour.
+    checks : bool
+        Beyond the paper: the tracker takes a contour as a measurement only when it passes
+        the failure tests above (no leak, collapse, growth, change of shape or loss of
+        contrast), and a contour much smaller than the target means something stands in
+        front; default True (False takes any contour, as the paper does).
+    trust_faded : bool
+        The tracker takes a contour that failed only for low contrast (thermal crossover);
+        default False (True is the paper's, which has no contrast test).
+    start_at : str
+        Where the tracker starts the level set: ``cues`` (default: the filter's detection
+        when it is confident, the mean shift when its colour match is good, else the
+        prediction) or ``meanshift`` (the paper's step 3: the mean-shift position).
     """
 
     section = "contour"
@@ -93,6 +105,9 @@ class ContourConfig(Section):
     part_fraction: float = param(0.6, gt=0, le=1)
     max_dimension_ratio: float = param(1.45, gt=1)
     closing_fraction: float = param(0.25, ge=0, le=1)
+    checks: bool = True
+    trust_faded: bool = False
+    start_at: str = param("cues", choices=("cues", "meanshift"))
 
 
 @dataclass(frozen=True)

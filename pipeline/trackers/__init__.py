@@ -1,4 +1,21 @@
-"""Tracker engines and their registry (``--tracker NAME``)."""
+"""Tracker engines and their registry (``--tracker NAME``).
+
+Each name maps to a builder that makes the tracker from its own section of the resolved
+:class:`~pipeline.config.PipelineConfig` (:data:`pipeline.config.TRACKER_SECTIONS`) and wraps
+it in an :class:`~pipeline.trackers.base.Engine`:
+
+==================  ==================================================================
+name                built as
+==================  ==================================================================
+``dual``            ``Dual.from_config(cfg.dual)`` (:mod:`pipeline.trackers.dual`)
+``meanshift``       ``MeanShift(cfg.meanshift)``
+``kalman-camshift`` ``KalmanCamShift(cfg.kalman_camshift)``
+``detect``          ``DetectAndAssociate(cfg.detect)``
+``camshift``        ``CamShiftEngine(cfg.camshift, cfg.opencv.channel)``
+``mil``, ``csrt``,  ``OpenCVEngine(name, cfg.opencv)`` (CSRT and KCF where the installed
+``kcf``             OpenCV has its contrib modules)
+==================  ==================================================================
+"""
 
 from __future__ import annotations
 
@@ -6,101 +23,99 @@ from collections.abc import Callable
 
 from pipeline.config import PipelineConfig
 from pipeline.errors import InputError
-from pipeline.stages import appearance, contour, histogram
-from pipeline.stages.detection import infrared_only
-from pipeline.trackers import detect as _detect
-from pipeline.trackers import dual as _dual
-from pipeline.trackers import kalman_camshift as _kc
-from pipeline.trackers import meanshift as _meanshift
-from pipeline.trackers.base import BackgroundEngine, Engine, FunctionalEngine
+from pipeline.stages import histogram
+from pipeline.trackers.base import CoreEngine, Engine
+from pipeline.trackers.detect import DetectAndAssociate, detect_init
+from pipeline.trackers.dual import Dual
+from pipeline.trackers.kalman_camshift import KalmanCamShift
+from pipeline.trackers.meanshift import MeanShift
 from pipeline.trackers.peers import CamShiftEngine, OpenCVEngine, opencv_tracker_available
 
 
-def _engine(
-    name: str,
-    init: Callable,
-    step: Callable,
-    *warm_ups: Callable[[], None],
-    background: bool = False,
-) -> Callable[[PipelineConfig], Engine]:
-    """Factory of a functional engine that first compiles or loads its numba kernels (``warm_ups``,
-    once per process), so that the tracker's first timed frame does not pay for them; with
-    ``background``, one whose detector gets the sequence's background
-    (:class:`~pipeline.trackers.base.BackgroundEngine`)."""
-
-    def make(cfg: PipelineConfig) -> Engine:
-        for warm_up in warm_ups:
-            warm_up()
-        if background:
-            return BackgroundEngine(
-                name,
-                init,
-                step,
-                cfg,
-                _dual_detector_channel,
-                lazy=True,
-                detection=lambda c: infrared_only(c.detection),
-            )
-        return FunctionalEngine(name, init, step, cfg)
-
-    return make
+def dual_engine(cfg: PipelineConfig) -> Engine:
+    """``dual``: the composition of ``cfg.dual``, its kernels compiled before the first frame;
+    its whole-frame search gets the sequence's background."""
+    core = Dual.from_config(cfg.dual)
+    return CoreEngine("dual", core, warm_ups=(core.warm_up,))
 
 
-def _dual_detector_channel(channels: tuple[str, ...], cfg: PipelineConfig) -> str:
-    """The dual tracker's whole-frame search detects in the IR frame, in the visible one without
-    IR."""
-    return "infrared" if "infrared" in channels else "visible"
+def meanshift_engine(cfg: PipelineConfig) -> Engine:
+    """``meanshift``: colour-histogram mean shift with a scale search (``cfg.meanshift``)."""
+    return CoreEngine("meanshift", MeanShift(cfg.meanshift), warm_ups=(histogram.warm_up,))
 
 
-_FACTORIES: dict[str, Callable[[PipelineConfig], Engine]] = {
-    "dual": _engine(
-        "dual",
-        _dual.init,
-        _dual.step,
-        histogram.warm_up,
-        contour.warm_up,
-        appearance.warm_up,
-        background=True,
-    ),
-    "meanshift": _engine("meanshift", _meanshift.init, _meanshift.step, histogram.warm_up),
-    "kalman-camshift": _engine("kalman-camshift", _kc.init, _kc.step, histogram.warm_up),
-    "detect": _detect.make_engine,
-    "camshift": lambda cfg: CamShiftEngine(cfg.camshift, cfg.opencv.channel),
-    "mil": lambda cfg: OpenCVEngine("mil", cfg.opencv),
-    "csrt": lambda cfg: OpenCVEngine("csrt", cfg.opencv),
-    "kcf": lambda cfg: OpenCVEngine("kcf", cfg.opencv),
+def kalman_camshift_engine(cfg: PipelineConfig) -> Engine:
+    """``kalman-camshift``: CamShift from a Kalman prediction (``cfg.kalman_camshift``)."""
+    core = KalmanCamShift(cfg.kalman_camshift)
+    return CoreEngine("kalman-camshift", core, warm_ups=(histogram.warm_up,))
+
+
+def detect_engine(cfg: PipelineConfig) -> Engine:
+    """``detect``: detection and global association, no initial boxes (``cfg.detect``)."""
+    return CoreEngine("detect", DetectAndAssociate(cfg.detect))
+
+
+def camshift_engine(cfg: PipelineConfig) -> Engine:
+    """``camshift``: OpenCV's CamShift (``cfg.camshift``) on ``cfg.opencv.channel``."""
+    return CamShiftEngine(cfg.camshift, cfg.opencv.channel)
+
+
+def _opencv(name: str) -> Callable[[PipelineConfig], Engine]:
+    def build(cfg: PipelineConfig) -> Engine:
+        return OpenCVEngine(name, cfg.opencv)
+
+    build.__doc__ = f"``{name}``: OpenCV's {name.upper()} tracker (``cfg.opencv``)."
+    return build
+
+
+TRACKERS: dict[str, Callable[[PipelineConfig], Engine]] = {
+    "dual": dual_engine,
+    "meanshift": meanshift_engine,
+    "kalman-camshift": kalman_camshift_engine,
+    "detect": detect_engine,
+    "camshift": camshift_engine,
+    "mil": _opencv("mil"),
+    "csrt": _opencv("csrt"),
+    "kcf": _opencv("kcf"),
 }
+"""Every tracker by name, with the builder that makes it from the resolved configuration."""
+
 PEERS = ("camshift", "mil", "csrt", "kcf")
 NEEDS_NO_INIT = ("detect",)
-detect_init = _detect.detect_init
 DEFAULT_TRACKER = "dual"
 
 
 def tracker_names() -> list[str]:
-    return list(_FACTORIES)
+    """Every tracker's name, the default first."""
+    return list(TRACKERS)
 
 
 def available_trackers() -> list[str]:
     """Trackers that can run with the installed OpenCV."""
-    return [n for n in _FACTORIES if n not in ("csrt", "kcf") or opencv_tracker_available(n)]
-
-
-def register(name: str, factory: Callable[[PipelineConfig], Engine]) -> None:
-    _FACTORIES[name] = factory
+    return [n for n in TRACKERS if n not in ("csrt", "kcf") or opencv_tracker_available(n)]
 
 
 def make_tracker(name: str, cfg: PipelineConfig) -> Engine:
-    """Build the engine ``name`` with the resolved ``PipelineConfig``."""
-    factory = _FACTORIES.get(name)
-    if factory is None:
-        raise InputError(f"unknown tracker {name!r}; available: {', '.join(_FACTORIES)}")
-    return factory(cfg)
+    """Build the engine ``name`` from the resolved configuration.
+
+    Examples
+    --------
+    >>> from pipeline.config import load_config
+    >>> engine = make_tracker("dual", load_config(None, ["dual.groups=default"]))
+    >>> engine.name, engine.core.groups is not None
+    ('dual', True)
+    """
+    build = TRACKERS.get(name)
+    if build is None:
+        raise InputError(f"unknown tracker {name!r}; available: {', '.join(TRACKERS)}")
+    return build(cfg)
 
 
 __all__ = [
     "DEFAULT_TRACKER",
     "NEEDS_NO_INIT",
     "PEERS",
+    "TRACKERS",
     "Engine",
     "available_trackers",
     "detect_init",

@@ -4,7 +4,7 @@ An engine is started on the first frame pair with the initial targets and then s
 once per frame pair; both return a :class:`~pipeline.types.FrameResult` with one
 :class:`~pipeline.types.TargetResult` per target (box, status, diagnostics)::
 
-    engine = make_tracker("dual", cfg)
+    engine = make_tracker("dual", cfg)          # pipeline.trackers
     first = engine.start(frames_1, init_targets)
     for frames in rest:
         result = engine.step(frames)
@@ -13,10 +13,10 @@ An engine that looks at the whole sequence before its first frame (the detector'
 of a still camera) has an ``attach(seq)`` method too, which the runner calls before ``start``
 (:func:`attach_sequence`).
 
-Our own trackers are written as pure functions over frozen per-target state,
-``init(frames, targets, cfg) -> state`` and ``step(state, frames, cfg) -> (state,
-FrameResult)``; :class:`FunctionalEngine` holds the state between calls so the runner
-sees the same interface as the OpenCV peers (whose state lives inside OpenCV objects).
+Our own trackers are pure cores over frozen per-target state (:class:`Core`: ``init(frames,
+targets) -> (state, FrameResult)`` and ``step(state, frames) -> (state, FrameResult)``), built
+from their configuration section; :class:`CoreEngine` holds the state between calls so the
+runner sees the same interface as the OpenCV peers (whose state lives inside OpenCV objects).
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ import functools
 from collections.abc import Callable, Sequence
 from typing import Generic, Protocol, TypeVar
 
-from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages.detection import DetectionConfig
 from pipeline.types import FrameResult, InitTarget
@@ -44,93 +43,100 @@ class Engine(Protocol):
     def step(self, frames: FramePair) -> FrameResult: ...
 
 
-class FunctionalEngine(Generic[S]):
-    """Adapter from a pure ``init``/``step`` pair to the :class:`Engine` interface.
+class Core(Protocol[S]):
+    """A tracker written as pure functions over frozen state: ``init`` on the first frame pair,
+    ``step`` on every later one, each returning the new state and the frame's result.
 
-    ``state`` is public so tests and tools can inspect or replay it.
+    A core that runs a detector has a ``detection`` attribute (the
+    :class:`~pipeline.stages.detection.DetectionConfig` its detector runs with, or None) and a
+    ``detector_channel(channels)`` method; its ``init`` then takes a ``background`` keyword and
+    its state has a ``background`` field (see :class:`CoreEngine`).
     """
 
-    def __init__(
-        self,
-        name: str,
-        init: Callable[[FramePair, Sequence[InitTarget], PipelineConfig], tuple[S, FrameResult]],
-        step: Callable[[S, FramePair, PipelineConfig], tuple[S, FrameResult]],
-        cfg: PipelineConfig,
-    ):
+    def init(self, frames: FramePair, targets: Sequence[InitTarget]) -> tuple[S, FrameResult]: ...
+
+    def step(self, state: S, frames: FramePair) -> tuple[S, FrameResult]: ...
+
+
+class CoreEngine(Generic[S]):
+    """The :class:`Engine` over a pure :class:`Core`: it holds the core's state between calls.
+
+    A core with a detector (``core.detection`` not None) is given the background of the whole
+    sequence once :meth:`attach` has been called (``detection.background_init = "sequence"``):
+    every frame's background (:class:`pipeline.io.background.SequenceBackground`) is put in the
+    state before the frame is stepped; with ``core.lazy_background``, as a function of no
+    arguments returning it, so that a tracker that seldom runs its detector (the dual tracker's
+    whole-frame search) reads the sequence's samples only if it does. Not attached, the state's
+    background is whatever the core leaves.
+
+    Parameters
+    ----------
+    name : str
+        The tracker's name (``dualtrack trackers``).
+    core : Core
+        The tracker.
+    warm_ups : sequence of callables
+        Called once here, before the first timed frame (numba kernels compiled or loaded).
+
+    Attributes
+    ----------
+    state : object or None
+        The core's state after the last call (public so that tests and tools can inspect or
+        replay it).
+    """
+
+    def __init__(self, name: str, core: Core[S], warm_ups: Sequence[Callable[[], None]] = ()):
         self.name = name
-        self._init = init
-        self._step = step
-        self.cfg = cfg
+        self.core = core
         self.state: S | None = None
+        self._source = None
+        for warm_up in warm_ups:
+            warm_up()
+
+    @property
+    def detection(self) -> DetectionConfig | None:
+        """The settings of the core's detector (None without one)."""
+        return getattr(self.core, "detection", None)
+
+    def attach(self, seq) -> None:
+        """Give the engine the sequence it will run on: its detector's background comes from
+        the whole sequence where the settings ask for it."""
+        if self.detection is None:
+            return
+        from pipeline.io.background import sequence_background
+
+        channel = self.core.detector_channel(tuple(seq.channels))
+        self._source = sequence_background(seq, channel, self.detection)
+
+    def _background(self, index: int):
+        if self._source is None:
+            return None
+        if getattr(self.core, "lazy_background", False):
+            return functools.partial(self._source.at, index)
+        return self._source.at(index)
 
     def start(self, frames: FramePair, targets: Sequence[InitTarget]) -> FrameResult:
-        self.state, result = self._init(frames, targets, self.cfg)
+        if self.detection is not None:
+            background = self._background(frames.index)
+            self.state, result = self.core.init(frames, targets, background=background)
+        else:
+            self.state, result = self.core.init(frames, targets)
         return result
 
     def step(self, frames: FramePair) -> FrameResult:
         if self.state is None:
             raise RuntimeError(f"{self.name}: step() called before start()")
-        self.state, result = self._step(self.state, frames, self.cfg)
-        return result
-
-
-class BackgroundEngine(FunctionalEngine[S]):
-    """A functional engine whose detector uses the background of the whole sequence.
-
-    Its ``init`` takes a ``background`` keyword and its state has a ``background`` field; once
-    :meth:`attach` has been given the sequence (``detection.background_init = "sequence"``), every
-    frame's background (:class:`pipeline.io.background.SequenceBackground`) is put there before the
-    frame is stepped. Not attached, the state's background is whatever ``init`` and ``step`` leave.
-    ``channel`` picks the detector's channel from the sequence's channels. With ``lazy``, what is
-    put there is a function of no arguments returning the background, so that a tracker that seldom
-    runs its detector (the dual tracker's whole-frame search) reads the sequence's samples only if
-    it does. ``detection`` gives the detection settings the engine's detector runs with (default:
-    the configuration's ``detection`` section), which decide what the background estimates.
-    """
-
-    def __init__(
-        self,
-        name: str,
-        init: Callable[..., tuple[S, FrameResult]],
-        step: Callable[[S, FramePair, PipelineConfig], tuple[S, FrameResult]],
-        cfg: PipelineConfig,
-        channel: Callable[[tuple[str, ...], PipelineConfig], str],
-        lazy: bool = False,
-        detection: Callable[[PipelineConfig], DetectionConfig] | None = None,
-    ):
-        super().__init__(name, init, step, cfg)
-        self._channel = channel
-        self._detection = detection
-        self._lazy = lazy
-        self._source = None
-
-    def attach(self, seq) -> None:
-        from pipeline.io.background import sequence_background
-
-        dcfg = self._detection(self.cfg) if self._detection is not None else self.cfg.detection
-        self._source = sequence_background(seq, self._channel(tuple(seq.channels), self.cfg), dcfg)
-
-    def _background(self, index: int):
-        if self._source is None:
-            return None
-        return functools.partial(self._source.at, index) if self._lazy else self._source.at(index)
-
-    def start(self, frames: FramePair, targets: Sequence[InitTarget]) -> FrameResult:
-        self.state, result = self._init(
-            frames, targets, self.cfg, background=self._background(frames.index)
-        )
-        return result
-
-    def step(self, frames: FramePair) -> FrameResult:
-        if self.state is not None and self._source is not None:
+        if self._source is not None:
             self.state = dataclasses.replace(self.state, background=self._background(frames.index))
-        return super().step(frames)
+        self.state, result = self.core.step(self.state, frames)
+        return result
 
 
-def detector_channel(channels: tuple[str, ...], cfg: PipelineConfig) -> str:
-    """The channel the detector runs on: ``detection.channel`` if present, else the other."""
-    pref = cfg.detection.channel
-    return pref if pref in channels else ("visible" if pref == "infrared" else "infrared")
+def preferred_channel(channels: tuple[str, ...], preferred: str) -> str:
+    """``preferred`` if the sequence has it, else the other channel."""
+    if preferred in channels:
+        return preferred
+    return "visible" if preferred == "infrared" else "infrared"
 
 
 def attach_sequence(engine: Engine, seq: object) -> None:

@@ -37,7 +37,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.io.sequence import Sequence as FrameSequence
 from pipeline.stages import kalman
@@ -51,7 +50,8 @@ from pipeline.stages.detection import (
     to_grey,
 )
 from pipeline.stages.roi_match import image_likelihood, match_boxes
-from pipeline.trackers.base import BackgroundEngine, detector_channel, pick_channel
+from pipeline.tracker_config import DetectConfig
+from pipeline.trackers.base import CoreEngine, pick_channel, preferred_channel
 from pipeline.types import (
     BBox,
     Event,
@@ -80,19 +80,15 @@ class DetTrack:
 
 @dataclass(frozen=True)
 class DetectState:
+    """The tracks, the next id, the detector's channel and background estimate
+    (``detection.method = foreground``), and the confirmed tracks given up with the frame they
+    were lost (dormant)."""
+
     tracks: tuple[DetTrack, ...]
     next_id: int
     channel: str
-    background: Background | None = (
-        None  # the detector's background estimate (``detection.method = foreground``)
-    )
-    dormant: tuple[
-        tuple[DetTrack, int], ...
-    ] = ()  # confirmed tracks given up, with the frame they were lost
-
-
-def _kcfg(cfg: PipelineConfig) -> kalman.KalmanConfig:
-    return _motion_cfg(cfg.kalman, cfg.association)
+    background: Background | None = None
+    dormant: tuple[tuple[DetTrack, int], ...] = ()
 
 
 @functools.lru_cache(maxsize=8)
@@ -106,6 +102,16 @@ def _motion_cfg(k: kalman.KalmanConfig, a: AssociationConfig) -> kalman.KalmanCo
         size_noise=a.position_noise / 4,
         position_std_px=a.position_std_px,
     )
+
+
+@functools.lru_cache(maxsize=8)
+def _detection_cfg(dcfg: DetectionConfig, a: AssociationConfig) -> DetectionConfig:
+    """The detection settings the tracker runs with: touching regions are split only on request
+    (``association.split_touching``), the visible channel's regions only looked for on request
+    (``association.use_visible_regions``); made once per configuration, not every frame."""
+    if not a.split_touching:
+        dcfg = dataclasses.replace(dcfg, split_core_fraction=0.0)
+    return dcfg if a.use_visible_regions else infrared_only(dcfg)
 
 
 def _new_track(
@@ -124,267 +130,232 @@ def _new_track(
     )
 
 
-def init(
-    frames: FramePair,
-    targets: Sequence[InitTarget],
-    cfg: PipelineConfig,
-    background: Background | None = None,
-) -> tuple[DetectState, FrameResult]:
-    """Start with no tracks (``targets`` are ignored: the detector finds them); ``background``, the
-    detector's (the sequence's, :mod:`pipeline.io.background`), or None to bootstrap it from this
-    frame."""
-    ch = pick_channel(frames, cfg.detection.channel)
-    state = DetectState((), 1, ch, background)
-    return step(state, frames, cfg)
+@dataclass(frozen=True)
+class FrameMatch:
+    """One frame's detections and their assignment to the tracks: the regions, every track's
+    prediction, the regions that hold two or more confirmed tracks' predictions (merged blobs),
+    the pair costs, Lambda_I and gamma, and the assignment ``{track: region}``."""
+
+    grey: np.ndarray
+    regions: list[Region]
+    priors: list[kalman.GaussianState]
+    group: set[int]
+    cost: np.ndarray
+    lam_i: np.ndarray
+    gam: np.ndarray
+    matched: dict[int, int]
+    unmatched: tuple[int, ...]
+    background: Background | None
 
 
-def make_engine(cfg: PipelineConfig) -> BackgroundEngine[DetectState]:
-    """The detection-driven tracker as an engine; attached to a sequence, its detector uses the
-    sequence's background (``detection.background_init = "sequence"``)."""
-    return BackgroundEngine(
-        "detect", init, step, cfg, detector_channel, detection=detection_settings
-    )
+class _Ledger:
+    """What one frame's track management accumulates: events, results, surviving tracks and the
+    dormant ones."""
+
+    def __init__(self, dormant: tuple[tuple[DetTrack, int], ...]):
+        self.events: list[Event] = []
+        self.results: list[TargetResult] = []
+        self.tracks: list[DetTrack] = []
+        self.dormant = dormant
+
+    def wake(self, tid: int) -> None:
+        """Track ``tid`` leaves the dormant ones (it resumed)."""
+        self.dormant = tuple(d for d in self.dormant if d[0].id != tid)
 
 
-def pair_costs(
-    tracks: Sequence[DetTrack],
-    priors: Sequence[kalman.GaussianState],
-    regions: Sequence[Region],
-    grey: np.ndarray,
-    cfg: PipelineConfig,
-    timing: dict[str, float],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(cost N x M, Λ_I N x M (NaN outside the gate), γ N x M) of every track/detection pair."""
-    a = cfg.association
-    rm = cfg.roi_match
-    kcfg = _kcfg(cfg)
-    Hm, Rm = kalman.measurement_model(kcfg)
-    n, m = len(tracks), len(regions)
-    cost = np.full((n, m), np.inf)
-    lam_i = np.full((n, m), np.nan)
-    gam = np.full((n, m), np.inf)
-    if n == 0 or m == 0:
-        return cost, lam_i, gam
-    t0 = time.perf_counter()
-    z = np.array([r.centroid for r in regions])
-    img_s = 0.0
-    for i, (t, prior) in enumerate(zip(tracks, priors, strict=True)):
-        S = (Hm @ prior.P @ Hm.T + Rm)[:2, :2]
-        ll, g = state_log_likelihoods(z, prior.x[:2], S)  # every detection at once
-        gam[i] = g
-        for j in np.flatnonzero(g <= a.gate_chi2):
-            c = -ll[j] if a.use_state else 0.0
-            if a.use_image:
-                ti = time.perf_counter()
-                rho = match_boxes(
-                    t.template, t.template_box.as_tuple(), grey, regions[j].box.as_tuple(), rm
-                ).correlation
-                img_s += time.perf_counter() - ti
-                lam_i[i, j] = rho
-                c -= math.log(image_likelihood(rho, rm))
-            cost[i, j] = c
-    timing["roi_match"] = timing.get("roi_match", 0.0) + img_s
-    timing["gating"] = timing.get("gating", 0.0) + time.perf_counter() - t0 - img_s
-    return cost, lam_i, gam
+@dataclass(frozen=True)
+class DetectAndAssociate:
+    """The detection-driven tracker: one pure core over its ``detect`` section.
 
+    Parameters
+    ----------
+    cfg : DetectConfig
+        The detector (``detection``), the ROI correlation (``roi_match``), the association and
+        track management (``association``) and the tracks' motion (``kalman``).
+    """
 
-@functools.lru_cache(maxsize=8)
-def _detection_cfg(dcfg: DetectionConfig, a: AssociationConfig) -> DetectionConfig:
-    """The detection settings the tracker runs with: touching regions are split only on request
-    (``association.split_touching``), the visible channel's regions only looked for on request
-    (``association.use_visible_regions``); made once per configuration, not every frame."""
-    if not a.split_touching:
-        dcfg = dataclasses.replace(dcfg, split_core_fraction=0.0)
-    return dcfg if a.use_visible_regions else infrared_only(dcfg)
+    cfg: DetectConfig
 
+    @property
+    def kalman(self) -> kalman.KalmanConfig:
+        """The tracks' constant-velocity model."""
+        return _motion_cfg(self.cfg.kalman, self.cfg.association)
 
-def detection_settings(cfg: PipelineConfig) -> DetectionConfig:
-    """What :func:`step`'s detector runs with (the engine's sequence background follows it)."""
-    return _detection_cfg(cfg.detection, cfg.association)
+    @property
+    def detection(self) -> DetectionConfig:
+        """What the detector runs with (the engine's sequence background follows it)."""
+        return _detection_cfg(self.cfg.detection, self.cfg.association)
 
+    def detector_channel(self, channels: tuple[str, ...]) -> str:
+        """The channel the detector runs on: ``detection.channel`` if present, else the other."""
+        return preferred_channel(channels, self.cfg.detection.channel)
 
-def step(
-    state: DetectState, frames: FramePair, cfg: PipelineConfig
-) -> tuple[DetectState, FrameResult]:
-    """One frame: detect, predict, associate, update, manage tracks."""
-    a = cfg.association
-    kcfg = _kcfg(cfg)
-    F, Q = kalman.motion_model(kcfg)
-    Hm, Rm = kalman.measurement_model(kcfg)
-    timing: dict[str, float] = {}
-    t0 = time.perf_counter()
-    image = getattr(frames, state.channel)
-    grey = to_grey(image)
-    H, W = grey.shape
-    found = detect(
-        grey,
-        detection_settings(cfg),
-        state.background,
-        frames.visible if state.channel == "infrared" else None,
-    )
-    regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px]
-    t1 = time.perf_counter()
-    timing["detection"] = t1 - t0
-    priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]
-    # a detection holding the predicted centres of two or more confirmed targets is their merged
-    # blob: it measures none of them (they coast inside it) and starts no track
-    inside = [
-        [
-            i
-            for i, (t, p) in enumerate(zip(state.tracks, priors, strict=True))
-            if t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
-        ]
-        for r in regions
-    ]
-    group = {j for j, members in enumerate(inside) if len(members) >= 2}
-    cost, lam_i, gam = pair_costs(state.tracks, priors, regions, grey, cfg, timing)
-    if group:
-        cost[:, sorted(group)] = np.inf
-    t2 = time.perf_counter()
-    miss = np.full(len(state.tracks), -math.log(1.0 - a.detection_probability))
-    new = np.full(len(regions), -math.log(a.false_alarm_probability))
-    assignment = get_associator(a.associator)(np.where(np.isfinite(cost), cost, 1e9), miss, new)
-    timing["association"] = time.perf_counter() - t2
-    matched = dict(assignment.pairs)
+    def init(
+        self,
+        frames: FramePair,
+        targets: Sequence[InitTarget],
+        background: Background | None = None,
+    ) -> tuple[DetectState, FrameResult]:
+        """Start with no tracks (``targets`` are ignored: the detector finds them);
+        ``background``, the detector's (the sequence's, :mod:`pipeline.io.background`), or None
+        to bootstrap it from this frame."""
+        ch = pick_channel(frames, self.cfg.detection.channel)
+        return self.step(DetectState((), 1, ch, background), frames)
 
-    events: list[Event] = []
-    results: list[TargetResult] = []
-    tracks: list[DetTrack] = []
-    dormant = tuple(d for d in state.dormant if frames.index - d[1] <= a.relink_frames)
-    for i, (t, prior) in enumerate(zip(state.tracks, priors, strict=True)):
-        j = matched.get(i)
-        age = frames.index - t.born + 1
-        if j is not None:
-            r = regions[j]
-            upd = kalman.correct(prior, kalman.box_measurement(r.box), Hm, Rm, kcfg)
-            hits, misses = t.hits + 1, 0
-            status = t.status
-            if status == TargetStatus.TENTATIVE and hits >= a.confirm_hits:
-                status = TargetStatus.TRACKING
-                old = _relink(r.box, dormant, frames.index, a.relink_frames)
-                if old is not None:
-                    dormant = tuple(d for d in dormant if d[0].id != old.id)
-                    events.append(
-                        Event(
-                            EventKind.REACQUIRED,
-                            f"T{old.id} found again ({frames.index - t.born + 1} "
-                            f"frames after a new track started on it)",
-                            (old.id,),
-                        )
-                    )
-                    t = dataclasses.replace(t, id=old.id)
-                else:
-                    events.append(
-                        Event(
-                            EventKind.CONFIRMED,
-                            f"T{t.id} confirmed ({hits} detections in {age} frames)",
-                            (t.id,),
-                        )
-                    )
-            elif status in (TargetStatus.OCCLUDED_SEVERE, TargetStatus.MERGED):
-                events.append(
-                    Event(
-                        EventKind.SPLIT
-                        if status == TargetStatus.MERGED
-                        else EventKind.OCCLUSION_END,
-                        f"T{t.id} detected again on its own",
-                        (t.id,),
-                    )
-                )
-                status = TargetStatus.TRACKING
-            box = r.box
-            nt = dataclasses.replace(
-                t,
-                kf=upd.state,
-                box=box,
-                status=status,
-                hits=hits,
-                misses=misses,
-                template=grey,
-                template_box=r.box,
+    def step(self, state: DetectState, frames: FramePair) -> tuple[DetectState, FrameResult]:
+        """One frame: detect, predict, associate, update, manage tracks."""
+        timing: dict[str, float] = {}
+        t0 = time.perf_counter()
+        fm = self.match(state, frames, timing)
+        a = self.cfg.association
+        ledger = _Ledger(tuple(d for d in state.dormant if frames.index - d[1] <= a.relink_frames))
+        for i, (t, prior) in enumerate(zip(state.tracks, fm.priors, strict=True)):
+            self._manage(i, t, prior, fm, frames.index, ledger)
+        next_id = self._births(state, fm, frames.index, ledger)
+        timing["detect_tracker"] = time.perf_counter() - t0
+        results = tuple(sorted(ledger.results, key=lambda r: r.id))
+        res = FrameResult(frames.index, results, tuple(ledger.events), timing)
+        new = DetectState(
+            tuple(ledger.tracks), next_id, state.channel, fm.background, ledger.dormant
+        )
+        return new, res
+
+    def match(self, state: DetectState, frames: FramePair, timing: dict[str, float]) -> FrameMatch:
+        """Detect, predict every track, and assign detections to tracks globally; a detection
+        holding the predicted centres of two or more confirmed targets is their merged blob: it
+        measures none of them (they coast inside it) and starts no track."""
+        a = self.cfg.association
+        F, Q = kalman.motion_model(self.kalman)
+        t0 = time.perf_counter()
+        grey = to_grey(getattr(frames, state.channel))
+        vis = frames.visible if state.channel == "infrared" else None
+        found = detect(grey, self.detection, state.background, vis)
+        regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px]
+        timing["detection"] = time.perf_counter() - t0
+        priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]
+        group = {
+            j
+            for j, r in enumerate(regions)
+            if sum(
+                t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
+                for t, p in zip(state.tracks, priors, strict=True)
             )
-            rho = lam_i[i, j]
-            diag = {
-                "gamma": float(gam[i, j]),
-                "lambda_i": float(rho) if np.isfinite(rho) else float("nan"),
-                "cost": float(cost[i, j]),
-                "detections": float(len(regions)),
-            }
+            >= 2
+        }
+        cost, lam_i, gam = self.pair_costs(state.tracks, priors, regions, grey, timing)
+        if group:
+            cost[:, sorted(group)] = np.inf
+        t2 = time.perf_counter()
+        miss = np.full(len(state.tracks), -math.log(1.0 - a.detection_probability))
+        new = np.full(len(regions), -math.log(a.false_alarm_probability))
+        finite = np.where(np.isfinite(cost), cost, 1e9)
+        assignment = get_associator(a.associator)(finite, miss, new)
+        timing["association"] = time.perf_counter() - t2
+        return FrameMatch(
+            grey,
+            regions,
+            priors,
+            group,
+            cost,
+            lam_i,
+            gam,
+            dict(assignment.pairs),
+            tuple(assignment.unmatched_detections),
+            found.background,
+        )
+
+    def pair_costs(
+        self,
+        tracks: Sequence[DetTrack],
+        priors: Sequence[kalman.GaussianState],
+        regions: Sequence[Region],
+        grey: np.ndarray,
+        timing: dict[str, float],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(cost N x M, Λ_I N x M (NaN outside the gate), γ N x M) of every track/detection
+        pair."""
+        a, rm = self.cfg.association, self.cfg.roi_match
+        Hm, Rm = kalman.measurement_model(self.kalman)
+        n, m = len(tracks), len(regions)
+        cost = np.full((n, m), np.inf)
+        lam_i = np.full((n, m), np.nan)
+        gam = np.full((n, m), np.inf)
+        if n == 0 or m == 0:
+            return cost, lam_i, gam
+        t0 = time.perf_counter()
+        z = np.array([r.centroid for r in regions])
+        img_s = 0.0
+        for i, (t, prior) in enumerate(zip(tracks, priors, strict=True)):
+            S = (Hm @ prior.P @ Hm.T + Rm)[:2, :2]
+            ll, g = state_log_likelihoods(z, prior.x[:2], S)  # every detection at once
+            gam[i] = g
+            for j in np.flatnonzero(g <= a.gate_chi2):
+                c = -ll[j] if a.use_state else 0.0
+                if a.use_image:
+                    ti = time.perf_counter()
+                    rho = match_boxes(
+                        t.template, t.template_box.as_tuple(), grey, regions[j].box.as_tuple(), rm
+                    ).correlation
+                    img_s += time.perf_counter() - ti
+                    lam_i[i, j] = rho
+                    c -= math.log(image_likelihood(rho, rm))
+                cost[i, j] = c
+        timing["roi_match"] = timing.get("roi_match", 0.0) + img_s
+        timing["gating"] = timing.get("gating", 0.0) + time.perf_counter() - t0 - img_s
+        return cost, lam_i, gam
+
+    # -------------------------------------------------------------------- track management
+    def _manage(
+        self,
+        i: int,
+        t: DetTrack,
+        prior: kalman.GaussianState,
+        fm: FrameMatch,
+        frame: int,
+        ledger: _Ledger,
+    ) -> None:
+        """Track ``i`` after the assignment: updated by its detection, coasting inside a merged
+        blob, or coasting (confirmed, lost or dropped); its result and events go to ``ledger``."""
+        j = fm.matched.get(i)
+        if j is not None:
+            nt, diag, rho = self._detected(i, j, t, prior, fm, frame, ledger)
             source = "detection"
         elif (
             t.status != TargetStatus.TENTATIVE
-            and (k := _blob_containing(prior, regions)) is not None
+            and (k := _blob_containing(prior, fm.regions)) is not None
         ):
-            # not detected on its own but inside a detected blob: merged with another target; coast
-            # inside it
-            r = regions[k]
-            c = _inside(prior.x[:2], (float(prior.x[2]), float(prior.x[3])), r.box)
-            box = BBox.from_center(
-                c[0], c[1], max(float(prior.x[2]), 1.0), max(float(prior.x[3]), 1.0)
+            nt, diag, rho, source = (
+                self._in_blob(t, prior, fm.regions[k], ledger),
+                {},
+                math.nan,
+                "kalman-in-blob",
             )
-            hits, misses = t.hits, t.misses + 1
-            status = TargetStatus.MERGED
-            if t.status != TargetStatus.MERGED:
-                events.append(
-                    Event(
-                        EventKind.MERGE,
-                        f"T{t.id} merged into the blob at "
-                        f"({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
-                        (t.id,),
-                    )
-                )
-            if misses > a.max_merged_frames:
-                status = TargetStatus.LOST
-                events.append(
-                    Event(
-                        EventKind.LOST,
-                        f"T{t.id} lost ({misses} frames inside a merged blob)",
-                        (t.id,),
-                    )
-                )
-            nt = dataclasses.replace(t, kf=prior, box=box, status=status, hits=hits, misses=misses)
-            diag = {"detections": float(len(regions)), "missing": float(misses)}
-            source = "kalman-in-blob"
-            rho = float("nan")
         else:
-            hits, misses = t.hits, t.misses + 1
-            box = prior.box
-            status = t.status
-            if status == TargetStatus.TENTATIVE:
-                if age >= a.confirm_window:  # failed M of N: dropped without ever being reported
-                    continue
-            elif (
-                misses > min(a.max_misses, a.coast_per_hit * hits)
-                or box.clip(W, H).area < 0.25 * box.area
-            ):
-                status = TargetStatus.LOST
-                why = (
-                    "left the frame"
-                    if box.clip(W, H).area < 0.25 * box.area
-                    else f"{misses} frames without a detection"
-                )
-                events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
-            elif status in (TargetStatus.TRACKING, TargetStatus.MERGED):
-                status = TargetStatus.OCCLUDED_SEVERE
-                events.append(
-                    Event(EventKind.OCCLUSION_START, f"T{t.id} not detected (coasting)", (t.id,))
-                )
-            nt = dataclasses.replace(t, kf=prior, box=box, status=status, hits=hits, misses=misses)
-            diag = {"detections": float(len(regions)), "missing": float(misses)}
-            source = "kalman"
-            rho = float("nan")
-        if status == TargetStatus.TENTATIVE and age >= a.confirm_window and hits < a.confirm_hits:
-            continue
+            nt = self._coasting(t, prior, fm.grey.shape, frame, ledger)
+            if nt is None:  # failed M of N: dropped without ever being reported
+                return
+            diag, rho, source = {}, math.nan, "kalman"
+        if not diag:
+            diag = {"detections": float(len(fm.regions)), "missing": float(nt.misses)}
+        a = self.cfg.association
+        age = frame - t.born + 1
+        if (
+            nt.status == TargetStatus.TENTATIVE
+            and age >= a.confirm_window
+            and nt.hits < a.confirm_hits
+        ):
+            return
+        box = nt.box
         conf = {
             TargetStatus.TRACKING: 1.0,
             TargetStatus.OCCLUDED_SEVERE: 0.3,
             TargetStatus.TENTATIVE: 0.2,
-        }.get(status, 0.0)
-        results.append(
+        }.get(nt.status, 0.0)
+        ledger.results.append(
             TargetResult(
-                t.id,
+                nt.id,
                 box,
-                status,
+                nt.status,
                 source,
                 {},
                 float(rho) if np.isfinite(rho) else float("nan"),
@@ -395,71 +366,186 @@ def step(
                 {"prediction": prior.box},
             )
         )
-        if status != TargetStatus.LOST:
-            tracks.append(nt)
+        if nt.status != TargetStatus.LOST:
+            ledger.tracks.append(nt)
         elif a.relink_frames > 0:
-            dormant += ((nt, frames.index),)
-    next_id = state.next_id
-    for j in assignment.unmatched_detections:
-        r = regions[j]
-        if j in group or any(
-            t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
-            for t, p in zip(state.tracks, priors, strict=True)
-        ):
-            continue  # a blob around a known target (merged targets): not a new one
-        old = (
-            _relink(r.box, dormant, frames.index, a.relink_frames)
-            if a.resume_min_correlation <= 1
-            else None
+            ledger.dormant += ((nt, frame),)
+
+    def _detected(
+        self,
+        i: int,
+        j: int,
+        t: DetTrack,
+        prior: kalman.GaussianState,
+        fm: FrameMatch,
+        frame: int,
+        ledger: _Ledger,
+    ) -> tuple[DetTrack, dict[str, float], float]:
+        """A track updated by detection ``j``: confirmed after M of N (taking a dormant track's
+        id where it could be that track), or back from a merge or a coast."""
+        a = self.cfg.association
+        r = fm.regions[j]
+        Hm, Rm = kalman.measurement_model(self.kalman)
+        upd = kalman.correct(prior, kalman.box_measurement(r.box), Hm, Rm, self.kalman)
+        hits, status = t.hits + 1, t.status
+        if status == TargetStatus.TENTATIVE and hits >= a.confirm_hits:
+            status = TargetStatus.TRACKING
+            t = self._confirmed(t, r, hits, frame, ledger)
+        elif status in (TargetStatus.OCCLUDED_SEVERE, TargetStatus.MERGED):
+            kind = EventKind.SPLIT if status == TargetStatus.MERGED else EventKind.OCCLUSION_END
+            ledger.events.append(Event(kind, f"T{t.id} detected again on its own", (t.id,)))
+            status = TargetStatus.TRACKING
+        nt = dataclasses.replace(
+            t,
+            kf=upd.state,
+            box=r.box,
+            status=status,
+            hits=hits,
+            misses=0,
+            template=fm.grey,
+            template_box=r.box,
         )
-        if old is not None:
-            rho = match_boxes(
-                old.template, old.template_box.as_tuple(), grey, r.box.as_tuple(), cfg.roi_match
-            ).correlation
-            if not (np.isfinite(rho) and rho >= a.resume_min_correlation):
-                old = None
-        # a dormant track detected again, looking as it did: it resumes at once, with its id
-        if old is not None:
-            dormant = tuple(d for d in dormant if d[0].id != old.id)
-            t = dataclasses.replace(
-                _new_track(old.id, r, grey, frames.index, kcfg),
-                status=TargetStatus.TRACKING,
-                hits=a.confirm_hits,
+        rho = fm.lam_i[i, j]
+        diag = {
+            "gamma": float(fm.gam[i, j]),
+            "lambda_i": float(rho) if np.isfinite(rho) else float("nan"),
+            "cost": float(fm.cost[i, j]),
+            "detections": float(len(fm.regions)),
+        }
+        return nt, diag, rho
+
+    def _confirmed(
+        self, t: DetTrack, r: Region, hits: int, frame: int, ledger: _Ledger
+    ) -> DetTrack:
+        """A tentative track just confirmed: it takes the id of a dormant track that could have
+        walked to ``r`` (:func:`_relink`), or is announced as a new target."""
+        age = frame - t.born + 1
+        old = _relink(r.box, ledger.dormant, frame, self.cfg.association.relink_frames)
+        if old is None:
+            text = f"T{t.id} confirmed ({hits} detections in {age} frames)"
+            ledger.events.append(Event(EventKind.CONFIRMED, text, (t.id,)))
+            return t
+        ledger.wake(old.id)
+        text = f"T{old.id} found again ({age} frames after a new track started on it)"
+        ledger.events.append(Event(EventKind.REACQUIRED, text, (old.id,)))
+        return dataclasses.replace(t, id=old.id)
+
+    def _in_blob(
+        self, t: DetTrack, prior: kalman.GaussianState, r: Region, ledger: _Ledger
+    ) -> DetTrack:
+        """A confirmed track not detected on its own but inside a detected blob: merged with
+        another target, it coasts inside the blob (lost after ``max_merged_frames``)."""
+        c = _inside(prior.x[:2], (float(prior.x[2]), float(prior.x[3])), r.box)
+        w, h = max(float(prior.x[2]), 1.0), max(float(prior.x[3]), 1.0)
+        box = BBox.from_center(c[0], c[1], w, h)
+        misses = t.misses + 1
+        status = TargetStatus.MERGED
+        if t.status != TargetStatus.MERGED:
+            at = f"({r.centroid[0]:.0f},{r.centroid[1]:.0f})"
+            ledger.events.append(
+                Event(EventKind.MERGE, f"T{t.id} merged into the blob at {at}", (t.id,))
             )
-            events.append(Event(EventKind.REACQUIRED, f"T{old.id} detected again", (old.id,)))
-        else:
-            t = _new_track(next_id, r, grey, frames.index, kcfg)
-            events.append(
-                Event(
-                    EventKind.BIRTH,
-                    f"T{next_id} born at ({r.centroid[0]:.0f},{r.centroid[1]:.0f})",
-                    (next_id,),
+        if misses > self.cfg.association.max_merged_frames:
+            status = TargetStatus.LOST
+            text = f"T{t.id} lost ({misses} frames inside a merged blob)"
+            ledger.events.append(Event(EventKind.LOST, text, (t.id,)))
+        return dataclasses.replace(t, kf=prior, box=box, status=status, misses=misses)
+
+    def _coasting(
+        self,
+        t: DetTrack,
+        prior: kalman.GaussianState,
+        shape: tuple[int, int],
+        frame: int,
+        ledger: _Ledger,
+    ) -> DetTrack | None:
+        """A track without a detection: a tentative one that failed M of N is dropped (None); a
+        confirmed one coasts, and is lost after too many misses or out of the frame."""
+        a = self.cfg.association
+        misses = t.misses + 1
+        box = prior.box
+        status = t.status
+        H, W = shape
+        if status == TargetStatus.TENTATIVE:
+            if frame - t.born + 1 >= a.confirm_window:
+                return None
+        elif (
+            misses > min(a.max_misses, a.coast_per_hit * t.hits)
+            or box.clip(W, H).area < 0.25 * box.area
+        ):
+            status = TargetStatus.LOST
+            out = box.clip(W, H).area < 0.25 * box.area
+            why = "left the frame" if out else f"{misses} frames without a detection"
+            ledger.events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
+        elif status in (TargetStatus.TRACKING, TargetStatus.MERGED):
+            status = TargetStatus.OCCLUDED_SEVERE
+            text = f"T{t.id} not detected (coasting)"
+            ledger.events.append(Event(EventKind.OCCLUSION_START, text, (t.id,)))
+        return dataclasses.replace(t, kf=prior, box=box, status=status, misses=misses)
+
+    def _births(self, state: DetectState, fm: FrameMatch, frame: int, ledger: _Ledger) -> int:
+        """New tentative tracks on the unmatched detections that are not a blob around a known
+        target; a dormant track detected again, looking as it did, resumes at once with its id.
+        Returns the next free id."""
+        a = self.cfg.association
+        next_id = state.next_id
+        for j in fm.unmatched:
+            r = fm.regions[j]
+            if j in fm.group or any(
+                t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
+                for t, p in zip(state.tracks, fm.priors, strict=True)
+            ):
+                continue  # a blob around a known target (merged targets): not a new one
+            t = self._resumed(r, fm.grey, frame, ledger)
+            if t is None:
+                t = _new_track(next_id, r, fm.grey, frame, self.kalman)
+                at = f"({r.centroid[0]:.0f},{r.centroid[1]:.0f})"
+                ledger.events.append(
+                    Event(EventKind.BIRTH, f"T{next_id} born at {at}", (next_id,))
+                )
+                next_id += 1
+                if a.confirm_hits <= 1:
+                    t = dataclasses.replace(t, status=TargetStatus.TRACKING)
+            ledger.tracks.append(t)
+            conf = 0.2 if t.status == TargetStatus.TENTATIVE else 1.0
+            detections = {"detections": float(len(fm.regions))}
+            ledger.results.append(
+                TargetResult(
+                    t.id,
+                    r.box,
+                    t.status,
+                    "detection",
+                    {},
+                    float("nan"),
+                    "none",
+                    conf,
+                    (),
+                    detections,
+                    {},
                 )
             )
-            next_id += 1
-            if a.confirm_hits <= 1:
-                t = dataclasses.replace(t, status=TargetStatus.TRACKING)
-        tracks.append(t)
-        results.append(
-            TargetResult(
-                t.id,
-                r.box,
-                t.status,
-                "detection",
-                {},
-                float("nan"),
-                "none",
-                0.2 if t.status == TargetStatus.TENTATIVE else 1.0,
-                (),
-                {"detections": float(len(regions))},
-                {},
-            )
-        )
-    timing["detect_tracker"] = time.perf_counter() - t0
-    res = FrameResult(
-        frames.index, tuple(sorted(results, key=lambda r: r.id)), tuple(events), timing
-    )
-    return DetectState(tuple(tracks), next_id, state.channel, found.background, dormant), res
+        return next_id
+
+    def _resumed(
+        self, r: Region, grey: np.ndarray, frame: int, ledger: _Ledger
+    ) -> DetTrack | None:
+        """The dormant track that detection ``r`` continues, resumed (confirmed, with its id),
+        when its ROI correlates with the track's last one by ``resume_min_correlation``."""
+        a = self.cfg.association
+        if a.resume_min_correlation > 1:
+            return None
+        old = _relink(r.box, ledger.dormant, frame, a.relink_frames)
+        if old is None:
+            return None
+        rho = match_boxes(
+            old.template, old.template_box.as_tuple(), grey, r.box.as_tuple(), self.cfg.roi_match
+        ).correlation
+        if not (np.isfinite(rho) and rho >= a.resume_min_correlation):
+            return None
+        ledger.wake(old.id)
+        ledger.events.append(Event(EventKind.REACQUIRED, f"T{old.id} detected again", (old.id,)))
+        t = _new_track(old.id, r, grey, frame, self.kalman)
+        return dataclasses.replace(t, status=TargetStatus.TRACKING, hits=a.confirm_hits)
 
 
 def _relink(
@@ -516,8 +602,14 @@ def _inside(c: np.ndarray, size: tuple[float, float], blob: BBox) -> tuple[float
     return out[0], out[1]
 
 
+def make_engine(cfg: DetectConfig) -> CoreEngine[DetectState]:
+    """The detection-driven tracker as an engine; attached to a sequence, its detector uses the
+    sequence's background (``detection.background_init = "sequence"``)."""
+    return CoreEngine("detect", DetectAndAssociate(cfg))
+
+
 def detect_init(
-    seq: FrameSequence, cfg: PipelineConfig, frames_to_scan: int = 5
+    seq: FrameSequence, cfg: DetectConfig, frames_to_scan: int = 5
 ) -> list[InitTarget]:
     """Initial targets for another tracker: run the detection-driven tracker over the first
     frames and take the tracks confirmed by then that were detected in frame 1, at their
@@ -542,6 +634,6 @@ def detect_init(
     if not found:
         raise InputError(
             f"--detect found no target in frame 1 confirmed within {n} frames of {seq.path}; "
-            "pass --init x,y,w,h or tune the [detection] section"
+            "pass --init x,y,w,h or tune the [detect.detection] section"
         )
     return [InitTarget(k + 1, b) for k, b in enumerate(sorted(found, key=lambda b: (b.x, b.y)))]

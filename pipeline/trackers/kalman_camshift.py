@@ -69,7 +69,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
 from pipeline.stages import kalman
 from pipeline.stages.camshift import (
@@ -94,6 +93,7 @@ from pipeline.stages.occlusion import (
     is_lost,
     next_severe_run,
 )
+from pipeline.tracker_config import CamShiftConfig, KalmanCamShiftConfig
 from pipeline.trackers.base import pick_channel
 from pipeline.types import (
     BBox,
@@ -118,9 +118,8 @@ class KCTarget:
     last_rect: BBox
     reference: AreaReference
     severe_run: int = 0
-    history: tuple[
-        tuple[float, float, float, float, float], ...
-    ] = ()  # clean (frame, cx, cy, w, h), newest last
+    # clean (frame, cx, cy, w, h), newest last
+    history: tuple[tuple[float, float, float, float, float], ...] = ()
     missing_run: int = 0  # frames in a row without a measurement
     # the colour distance sampling noise alone gives this target (camshift.sampling_distance)
     noise_d: float = 0.0
@@ -132,57 +131,355 @@ class KCState:
     channel: str
 
 
-def _bins(cfg: PipelineConfig, channel: str) -> int:
-    c = cfg.camshift
-    return c.hue_bins if channel == "visible" else c.intensity_bins
-
-
 SATURATION_BINS = 4
+"""Saturation bins of the masked hue x saturation histogram the occlusion test compares."""
 
 
-def _feature(
-    image: np.ndarray,
-    cfg: PipelineConfig,
-    channel: str,
-    saturation_bins: int = 1,
-    hsv: np.ndarray | None = None,
-):
-    c = cfg.camshift
-    return feature(image, _bins(cfg, channel), c.min_saturation, c.min_value, saturation_bins, hsv)
+@dataclass(frozen=True)
+class _Found:
+    """What CamShift (or the fixed-size re-acquisition search) found in one frame."""
+
+    window: BBox  # the search window (frame px)
+    box: BBox | None
+    d: float  # Bhattacharyya distance of the colour there to the model
+    area: float
+    source: str
 
 
-def init(
-    frames: FramePair, targets: Sequence[InitTarget], cfg: PipelineConfig
-) -> tuple[KCState, FrameResult]:
-    channel = pick_channel(frames, cfg.opencv.channel)
-    image = getattr(frames, channel)
-    f = _feature(image, cfg, channel, cfg.camshift.saturation_bins)
-    fc = _feature(image, cfg, channel, SATURATION_BINS)
-    states, results = [], []
-    for t in targets:
-        mask = box_mask(image.shape, t.box)
-        q = histogram(f, mask)
-        if cfg.camshift.background_weighting_scale > 0:  # beyond the paper: CBWH
-            q = weighted_model(
-                q, background_weights(f, t.box, cfg.camshift.background_weighting_scale)
+@dataclass(frozen=True)
+class _Outcome:
+    """One target's frame after the occlusion grade: its state's parts, its output and events."""
+
+    kf: kalman.GaussianState
+    out: BBox
+    status: TargetStatus
+    source: str
+    last_rect: BBox
+    events: tuple[Event, ...] = ()
+
+
+@dataclass(frozen=True)
+class KalmanCamShift:
+    """The ``kalman-camshift`` tracker: one pure core over its ``kalman_camshift`` section.
+
+    Parameters
+    ----------
+    cfg : KalmanCamShiftConfig
+        Its channel, the CamShift search (``camshift``), the motion model (``kalman``) and the
+        occlusion grading (``occlusion``).
+    """
+
+    cfg: KalmanCamShiftConfig
+
+    def _feature(
+        self,
+        image: np.ndarray,
+        channel: str,
+        saturation_bins: int = 1,
+        hsv: np.ndarray | None = None,
+    ):
+        c = self.cfg.camshift
+        bins = c.hue_bins if channel == "visible" else c.intensity_bins
+        return feature(image, bins, c.min_saturation, c.min_value, saturation_bins, hsv)
+
+    def init(
+        self, frames: FramePair, targets: Sequence[InitTarget]
+    ) -> tuple[KCState, FrameResult]:
+        """Every target's back-projected model (weighted against its surround), colour model,
+        sampling noise and Kalman state on the first frame."""
+        ccfg = self.cfg.camshift
+        channel = pick_channel(frames, self.cfg.channel)
+        image = getattr(frames, channel)
+        f = self._feature(image, channel, ccfg.saturation_bins)
+        fc = self._feature(image, channel, SATURATION_BINS)
+        states, results = [], []
+        for t in targets:
+            q = histogram(f, box_mask(image.shape, t.box))
+            if ccfg.background_weighting_scale > 0:  # beyond the paper: CBWH
+                q = weighted_model(
+                    q, background_weights(f, t.box, ccfg.background_weighting_scale)
+                )
+            noise = sampling_distance(fc, t.box) if self.cfg.occlusion.sampling_noise else 0.0
+            states.append(
+                KCTarget(
+                    t.id,
+                    kalman.init_state(t.box, self.cfg.kalman),
+                    q,
+                    kernel_masked_histogram(fc, t.box),
+                    TargetStatus.TRACKING,
+                    t.box,
+                    AreaReference((t.box.area,)),
+                    noise_d=noise,
+                )
             )
-        colour = kernel_masked_histogram(fc, t.box)
-        kf = kalman.init_state(t.box, cfg.kalman)
-        noise = sampling_distance(fc, t.box) if cfg.occlusion.sampling_noise else 0.0
-        states.append(
-            KCTarget(
-                t.id,
-                kf,
-                q,
-                colour,
-                TargetStatus.TRACKING,
-                t.box,
-                AreaReference((t.box.area,)),
-                noise_d=noise,
-            )
+            results.append(TargetResult(t.id, t.box, TargetStatus.TRACKING, "init", rho=1.0))
+        return KCState(tuple(states), channel), FrameResult(frames.index, tuple(results))
+
+    def step(self, state: KCState, frames: FramePair) -> tuple[KCState, FrameResult]:
+        """One frame for every target."""
+        t0 = time.perf_counter()
+        image = getattr(frames, state.channel)
+        new, results, events = [], [], []
+        for t in state.targets:
+            nt, r, ev = self.track_target(image, t, state.channel, frames.index)
+            new.append(nt)
+            results.append(r)
+            events += ev
+        timing = {"kalman_camshift": time.perf_counter() - t0}
+        return (
+            dataclasses.replace(state, targets=tuple(new)),
+            FrameResult(frames.index, tuple(results), tuple(events), timing),
         )
-        results.append(TargetResult(t.id, t.box, TargetStatus.TRACKING, "init", rho=1.0))
-    return KCState(tuple(states), channel), FrameResult(frames.index, tuple(results))
+
+    def _search(
+        self,
+        image: np.ndarray,
+        t: KCTarget,
+        pbox: BBox,
+        ocfg: OcclusionConfig,
+        channel: str,
+    ) -> _Found:
+        """CamShift from the prediction (in a window enlarged while the target is missing); a
+        missing target not found within the re-acquisition distance is also looked for with the
+        fixed size the paper prescribes."""
+        ccfg = self.cfg.camshift
+        missing = t.status != TargetStatus.TRACKING
+        h, w = image.shape[:2]
+        scale = ocfg.missing_search_scale if missing else ocfg.search_scale
+        window = _search_window(pbox, scale, w, h)
+        # CamShift grows the window by 10 px for its moments
+        margin = 12 + 0.25 * max(window.w, window.h)
+        x0, y0 = int(max(window.x - margin, 0)), int(max(window.y - margin, 0))
+        x1, y1 = int(min(window.x2 + margin, w)), int(min(window.y2 + margin, h))
+        roi = np.ascontiguousarray(image[y0:y1, x0:x1])
+        hsv = to_hsv(roi) if roi.ndim == 3 else None
+        f = self._feature(roi, channel, ccfg.saturation_bins, hsv)
+        fc = f
+        if ccfg.saturation_bins != SATURATION_BINS:
+            fc = self._feature(roi, channel, SATURATION_BINS, hsv)
+        prob = back_project(f, t.model)
+        cs = camshift(prob, window.shifted(-x0, -y0), ccfg.max_iterations, ccfg.epsilon_px)
+        found = cs.box.shifted(x0, y0) if cs.box is not None else None
+        d = _match(fc, cs.box, t.colour) if cs.box is not None else 1.0
+        area, source = cs.area_px2, "camshift"
+        if missing and d >= ocfg.reacquire_distance:
+            seen = (t.history[-1][1] - x0, t.history[-1][2] - y0) if t.history else None
+            for fixed in _fixed_size_candidates(
+                prob,
+                (pbox.cx - x0, pbox.cy - y0),
+                t.last_rect,
+                ocfg.missing_search_scale,
+                ccfg,
+                seen,
+            ):
+                d_fixed = _match(fc, fixed, t.colour)
+                if d_fixed < d:
+                    found, d, area, source = (
+                        fixed.shifted(x0, y0),
+                        d_fixed,
+                        fixed.area,
+                        "meanshift-fixed",
+                    )
+        return _Found(window, found, d, area, source)
+
+    def _measured(self, s: _Found, grade: Grade, t: KCTarget, ref_area: float) -> _Found:
+        """The box a clear CamShift result measures: at its position with the last size when
+        CamShift spread onto the colours around (no size), else the last box scaled by
+        CamShift's area within ``max_scale_step``."""
+        if grade != Grade.NONE or s.box is None:
+            return s
+        found, source = s.box, s.source
+        if s.area > self.cfg.occlusion.max_area_growth * ref_area:
+            found = BBox.from_center(found.cx, found.cy, t.last_rect.w, t.last_rect.h)
+            source = "camshift-position"
+        step = self.cfg.camshift.max_scale_step
+        if source == "camshift" and step < 1:
+            found = scaled_like(found, t.last_rect, step)
+        return dataclasses.replace(s, box=found, source=source)
+
+    def _outcome(
+        self,
+        grade: Grade,
+        s: _Found,
+        t: KCTarget,
+        prior: kalman.GaussianState,
+        severe_run: int,
+        ocfg: OcclusionConfig,
+    ) -> _Outcome:
+        """The paper's step 3: a clear match is measured; a partial occlusion outputs and feeds
+        back the prediction; a severe one the predicted position with the last good size, lost
+        after K0 such frames; a lost target coasts on."""
+        H, R = kalman.measurement_model(self.cfg.kalman)
+        pbox, last, d = prior.box, t.last_rect, s.d
+        missing = t.status != TargetStatus.TRACKING
+
+        def fed(box: BBox) -> kalman.GaussianState:
+            return kalman.correct(prior, kalman.box_measurement(box), H, R, self.cfg.kalman).state
+
+        if grade == Grade.NONE and s.box is not None:
+            ev: tuple[Event, ...] = ()
+            if t.status == TargetStatus.LOST:
+                ev = (Event(EventKind.REACQUIRED, f"T{t.id} re-acquired (d={d:.2f})", (t.id,)),)
+            elif missing:
+                ev = (
+                    Event(EventKind.OCCLUSION_END, f"T{t.id} visible again (d={d:.2f})", (t.id,)),
+                )
+            return _Outcome(fed(s.box), s.box, TargetStatus.TRACKING, s.source, s.box, ev)
+        if t.status == TargetStatus.LOST:  # keep coasting and searching; nothing is measured
+            out = BBox.from_center(pbox.cx, pbox.cy, last.w, last.h)
+            return _Outcome(prior, out, TargetStatus.LOST, "kalman", last)
+        if grade == Grade.PARTIAL:
+            return _Outcome(fed(pbox), pbox, TargetStatus.OCCLUDED_PARTIAL, "kalman", pbox)
+        sized = BBox.from_center(pbox.cx, pbox.cy, last.w, last.h)
+        if is_lost(severe_run, ocfg):
+            text = f"T{t.id} lost after {severe_run} severe frames"
+            ev = (Event(EventKind.LOST, text, (t.id,)),)
+            return _Outcome(prior, sized, TargetStatus.LOST, "kalman", last, ev)
+        return _Outcome(fed(sized), sized, TargetStatus.OCCLUDED_SEVERE, "kalman", last)
+
+    def _bounded(
+        self,
+        o: _Outcome,
+        t: KCTarget,
+        prior: kalman.GaussianState,
+        outside: bool,
+        missing_run: int,
+    ) -> _Outcome:
+        """Coasting is bounded: a prediction that leaves the frame, or ``max_missing_frames``
+        frames without a measurement, end in ``lost``, where the motion stops."""
+        if o.status.is_occluded and (
+            outside or missing_run > self.cfg.occlusion.max_missing_frames
+        ):
+            why = (
+                "its prediction left the frame"
+                if outside
+                else f"{missing_run} frames without a measurement"
+            )
+            kf = stop(prior)
+            out = BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
+            ev = (*o.events, Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
+            return dataclasses.replace(
+                o, kf=kf, out=out, status=TargetStatus.LOST, source="kalman", events=ev
+            )
+        if o.status == TargetStatus.LOST and outside:
+            return dataclasses.replace(o, kf=stop(o.kf))  # a lost target stops at the border
+        return o
+
+    def _onset(
+        self,
+        o: _Outcome,
+        t: KCTarget,
+        prior: kalman.GaussianState,
+        s: _Found,
+        frame: int,
+        ocfg: OcclusionConfig,
+    ) -> _Outcome:
+        """At an occlusion's onset the motion restarts from a line through the recent clean
+        measurements (discarding those the occluder was dragging); the onset and a partial
+        occlusion turning severe are events."""
+        if o.status.is_occluded and t.status == TargetStatus.TRACKING:
+            text = f"T{t.id} {o.status} (d={s.d:.2f}, area={s.area:.0f})"
+            o = dataclasses.replace(
+                o, events=(*o.events, Event(EventKind.OCCLUSION_START, text, (t.id,)))
+            )
+            restart = coast_start(t.history, prior, frame, ocfg.rewind_frames)
+            if restart is None:
+                return o
+            partial = o.status == TargetStatus.OCCLUDED_PARTIAL
+            last = t.last_rect
+            out = (
+                restart.box
+                if partial
+                else BBox.from_center(restart.box.cx, restart.box.cy, last.w, last.h)
+            )
+            return dataclasses.replace(
+                o, kf=restart, out=out, last_rect=out if partial else last, source="kalman-refit"
+            )
+        if o.status == TargetStatus.OCCLUDED_SEVERE and t.status == TargetStatus.OCCLUDED_PARTIAL:
+            text = f"T{t.id} occlusion now severe (area={s.area:.0f})"
+            return dataclasses.replace(
+                o, events=(*o.events, Event(EventKind.OCCLUSION_START, text, (t.id,)))
+            )
+        return o
+
+    def track_target(
+        self, image: np.ndarray, t: KCTarget, channel: str, frame: int
+    ) -> tuple[KCTarget, TargetResult, list[Event]]:
+        """One frame of Kalman-CAMShift for one target (the module doc's steps)."""
+        ocfg = self.cfg.occlusion
+        if t.noise_d > 0:
+            ocfg = _noise_aware(ocfg, t.noise_d)
+        kcfg = self.cfg.kalman
+        F, Q = kalman.motion_model(kcfg)
+        missing = t.status != TargetStatus.TRACKING
+        prior = kalman.predict(hold_rates(t.kf, kcfg) if missing else t.kf, F, Q)
+        pbox = prior.box
+        s = self._search(image, t, pbox, ocfg, channel)
+        min_area = t.reference.min_area(ocfg)
+        ref_area = (t.last_rect if missing else pbox).area
+        grade = grade_occlusion(s.d, s.area, min_area, ocfg, ref_area)
+        if missing and grade == Grade.NONE and s.d >= ocfg.reacquire_distance:
+            # hysteresis: not yet taken back
+            grade = Grade.PARTIAL if s.area >= (min_area or 0.0) else Grade.SEVERE
+        severe_run = next_severe_run(grade, t.severe_run)
+        s = self._measured(s, grade, t, ref_area)
+        o = self._outcome(grade, s, t, prior, severe_run, ocfg)
+        h, w = image.shape[:2]
+        missing_run = 0 if o.status == TargetStatus.TRACKING else t.missing_run + 1
+        o = self._bounded(o, t, prior, pbox.clip(w, h).area < 0.25 * pbox.area, missing_run)
+        o = self._onset(o, t, prior, s, frame, ocfg)
+        history = t.history
+        clean_match = s.d < 0.5 * ocfg.distance_threshold
+        if o.status == TargetStatus.TRACKING and clean_match and s.box is not None:
+            clean = (float(frame), s.box.cx, s.box.cy, s.box.w, s.box.h)
+            history = (*t.history, clean)[-ocfg.history_frames :]
+        reference = t.reference
+        if o.status == TargetStatus.TRACKING and not missing:
+            reference = reference.add(s.area, ocfg)
+        new_t = dataclasses.replace(
+            t,
+            kf=o.kf,
+            status=o.status,
+            last_rect=o.last_rect,
+            reference=reference,
+            severe_run=0 if o.status == TargetStatus.TRACKING else severe_run,
+            history=history,
+            missing_run=missing_run,
+        )
+        return new_t, _result(t.id, o, s, pbox, min_area, new_t.severe_run), list(o.events)
+
+
+def _result(
+    tid: int, o: _Outcome, s: _Found, pbox: BBox, min_area: float | None, severe_run: int
+) -> TargetResult:
+    """What ``targets.csv`` and the recording show of one target this frame."""
+    conf = {
+        TargetStatus.TRACKING: 1.0 - s.d,
+        TargetStatus.OCCLUDED_PARTIAL: 0.5,
+        TargetStatus.OCCLUDED_SEVERE: 0.25,
+    }.get(o.status, 0.0)
+    diag = {
+        "d": s.d,
+        "area_px2": s.area,
+        "min_area_px2": min_area if min_area is not None else float("nan"),
+        "severe_run": float(severe_run),
+    }
+    overlays = {"prediction": pbox, "search": s.window}
+    if s.box is not None:
+        overlays["camshift"] = s.box
+    return TargetResult(
+        tid,
+        o.out,
+        o.status,
+        o.source,
+        {},
+        1.0 - s.d * s.d,
+        "frozen:paper-fixed-model",
+        max(conf, 0.0),
+        (),
+        diag,
+        overlays,
+    )
 
 
 def _clip_center(box: BBox, width: int, height: int) -> BBox:
@@ -197,7 +494,7 @@ def _fixed_size_candidates(
     center: tuple[float, float],
     size: BBox,
     scale: float,
-    cfg_cs: object,
+    cfg_cs: CamShiftConfig,
     last_seen: tuple[float, float] | None = None,
 ) -> list[BBox]:
     """The paper's search during severe occlusion: a fixed-size window (``cv2.meanShift``), from
@@ -251,208 +548,3 @@ def _search_window(prior_box: BBox, scale: float, width: int, height: int) -> BB
 def _match(fc, box: BBox, colour: np.ndarray) -> float:
     """Bhattacharyya distance between the colour model and the masked histogram inside ``box``."""
     return bhattacharyya_distance(bhattacharyya(kernel_masked_histogram(fc, box), colour))
-
-
-def track_target(
-    image: np.ndarray, t: KCTarget, cfg: PipelineConfig, channel: str, frame: int
-) -> tuple[KCTarget, TargetResult, list[Event]]:
-    """One frame of Kalman-CAMShift for one target."""
-    kcfg, ocfg, ccfg = cfg.kalman, cfg.occlusion, cfg.camshift
-    if t.noise_d > 0:
-        ocfg = _noise_aware(ocfg, t.noise_d)
-    F, Q = kalman.motion_model(kcfg)
-    H, R = kalman.measurement_model(kcfg)
-    h, w = image.shape[:2]
-    missing = t.status != TargetStatus.TRACKING
-    prior = kalman.predict(hold_rates(t.kf, kcfg) if missing else t.kf, F, Q)
-    pbox = prior.box
-    window = _search_window(
-        pbox, ocfg.missing_search_scale if missing else ocfg.search_scale, w, h
-    )
-    margin = 12 + 0.25 * max(
-        window.w, window.h
-    )  # CamShift grows the window by 10 px for its moments
-    x0, y0 = int(max(window.x - margin, 0)), int(max(window.y - margin, 0))
-    x1, y1 = int(min(window.x2 + margin, w)), int(min(window.y2 + margin, h))
-    roi = np.ascontiguousarray(image[y0:y1, x0:x1])
-    hsv = to_hsv(roi) if roi.ndim == 3 else None
-    f = _feature(roi, cfg, channel, ccfg.saturation_bins, hsv)
-    fc = (
-        f
-        if ccfg.saturation_bins == SATURATION_BINS
-        else _feature(roi, cfg, channel, SATURATION_BINS, hsv)
-    )
-    prob = back_project(f, t.model)
-    local = window.shifted(-x0, -y0)
-    cs = camshift(prob, local, ccfg.max_iterations, ccfg.epsilon_px)
-    found = cs.box.shifted(x0, y0) if cs.box is not None else None
-    d = _match(fc, cs.box, t.colour) if cs.box is not None else 1.0
-    area = cs.area_px2
-    source = "camshift"
-    if missing and d >= ocfg.reacquire_distance:
-        # re-acquisition check with the fixed size the paper prescribes while the target is missing
-        seen = (t.history[-1][1] - x0, t.history[-1][2] - y0) if t.history else None
-        for fixed in _fixed_size_candidates(
-            prob, (pbox.cx - x0, pbox.cy - y0), t.last_rect, ocfg.missing_search_scale, ccfg, seen
-        ):
-            d_fixed = _match(fc, fixed, t.colour)
-            if d_fixed < d:
-                found, d, area, source = (
-                    fixed.shifted(x0, y0),
-                    d_fixed,
-                    fixed.area,
-                    "meanshift-fixed",
-                )
-    min_area = t.reference.min_area(ocfg)
-    grade = grade_occlusion(d, area, min_area, ocfg, (t.last_rect if missing else pbox).area)
-    if missing and grade == Grade.NONE and d >= ocfg.reacquire_distance:
-        grade = (
-            Grade.PARTIAL if area >= (min_area or 0.0) else Grade.SEVERE
-        )  # hysteresis: not yet taken back
-    events: list[Event] = []
-    reference = t.reference
-    severe_run = next_severe_run(grade, t.severe_run)
-    grown = (
-        found is not None and area > ocfg.max_area_growth * (t.last_rect if missing else pbox).area
-    )
-    # CamShift spread onto its colour around: no size
-    if grade == Grade.NONE and found is not None and grown:
-        found = BBox.from_center(found.cx, found.cy, t.last_rect.w, t.last_rect.h)
-        source = "camshift-position"
-    outside = pbox.clip(w, h).area < 0.25 * pbox.area
-    if (
-        grade == Grade.NONE
-        and source == "camshift"
-        and found is not None
-        and ccfg.max_scale_step < 1
-    ):
-        found = scaled_like(found, t.last_rect, ccfg.max_scale_step)
-    if grade == Grade.NONE and found is not None:
-        kf = kalman.correct(prior, kalman.box_measurement(found), H, R, kcfg).state
-        out, status, last_rect = found, TargetStatus.TRACKING, found
-        if not missing:
-            reference = reference.add(area, ocfg)
-        if t.status == TargetStatus.LOST:
-            events.append(Event(EventKind.REACQUIRED, f"T{t.id} re-acquired (d={d:.2f})", (t.id,)))
-        elif missing:
-            events.append(
-                Event(EventKind.OCCLUSION_END, f"T{t.id} visible again (d={d:.2f})", (t.id,))
-            )
-    elif t.status == TargetStatus.LOST:  # keep coasting and searching; nothing is measured
-        kf, status, source, last_rect = prior, TargetStatus.LOST, "kalman", t.last_rect
-        out = BBox.from_center(pbox.cx, pbox.cy, t.last_rect.w, t.last_rect.h)
-    elif grade == Grade.PARTIAL:
-        kf = kalman.correct(prior, kalman.box_measurement(pbox), H, R, kcfg).state
-        out, status, source, last_rect = pbox, TargetStatus.OCCLUDED_PARTIAL, "kalman", pbox
-    else:
-        sized = BBox.from_center(pbox.cx, pbox.cy, t.last_rect.w, t.last_rect.h)
-        kf = kalman.correct(prior, kalman.box_measurement(sized), H, R, kcfg).state
-        out, status, source, last_rect = sized, TargetStatus.OCCLUDED_SEVERE, "kalman", t.last_rect
-        if is_lost(severe_run, ocfg):
-            status, kf = TargetStatus.LOST, prior
-            events.append(
-                Event(EventKind.LOST, f"T{t.id} lost after {severe_run} severe frames", (t.id,))
-            )
-    missing_run = 0 if status == TargetStatus.TRACKING else t.missing_run + 1
-    if status.is_occluded and (outside or missing_run > ocfg.max_missing_frames):
-        why = (
-            "its prediction left the frame"
-            if outside
-            else f"{missing_run} frames without a measurement"
-        )
-        status, kf, source = TargetStatus.LOST, stop(prior), "kalman"
-        out = BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
-        events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
-    elif status == TargetStatus.LOST and outside:
-        kf = stop(kf)  # a lost target does not coast on out of the frame
-    history = t.history
-    if status == TargetStatus.TRACKING and d < 0.5 * ocfg.distance_threshold and found is not None:
-        history = (*t.history, (float(frame), found.cx, found.cy, found.w, found.h))[
-            -ocfg.history_frames :
-        ]
-    if status.is_occluded and not missing:
-        events.append(
-            Event(
-                EventKind.OCCLUSION_START,
-                f"T{t.id} {status} (d={d:.2f}, area={area:.0f})",
-                (t.id,),
-            )
-        )
-        restart = coast_start(t.history, prior, frame, ocfg.rewind_frames)
-        if restart is not None:  # discard the measurements the occluder was dragging
-            kf = restart
-            out = (
-                kf.box
-                if status == TargetStatus.OCCLUDED_PARTIAL
-                else BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
-            )
-            last_rect = out if status == TargetStatus.OCCLUDED_PARTIAL else t.last_rect
-            source = "kalman-refit"
-    elif status == TargetStatus.OCCLUDED_SEVERE and t.status == TargetStatus.OCCLUDED_PARTIAL:
-        events.append(
-            Event(
-                EventKind.OCCLUSION_START,
-                f"T{t.id} occlusion now severe (area={area:.0f})",
-                (t.id,),
-            )
-        )
-    if status == TargetStatus.TRACKING:
-        severe_run = 0
-    conf = {
-        TargetStatus.TRACKING: 1.0 - d,
-        TargetStatus.OCCLUDED_PARTIAL: 0.5,
-        TargetStatus.OCCLUDED_SEVERE: 0.25,
-    }.get(status, 0.0)
-    diag = {
-        "d": d,
-        "area_px2": area,
-        "min_area_px2": min_area if min_area is not None else float("nan"),
-        "severe_run": float(severe_run),
-    }
-    overlays = {"prediction": pbox, "search": window}
-    if found is not None:
-        overlays["camshift"] = found
-    new_t = dataclasses.replace(
-        t,
-        kf=kf,
-        status=status,
-        last_rect=last_rect,
-        reference=reference,
-        severe_run=severe_run,
-        history=history,
-        missing_run=missing_run,
-    )
-    res = TargetResult(
-        t.id,
-        out,
-        status,
-        source,
-        {},
-        1.0 - d * d,
-        "frozen:paper-fixed-model",
-        max(conf, 0.0),
-        (),
-        diag,
-        overlays,
-    )
-    return new_t, res, events
-
-
-def step(state: KCState, frames: FramePair, cfg: PipelineConfig) -> tuple[KCState, FrameResult]:
-    t0 = time.perf_counter()
-    image = getattr(frames, state.channel)
-    new, results, events = [], [], []
-    for t in state.targets:
-        nt, r, ev = track_target(image, t, cfg, state.channel, frames.index)
-        new.append(nt)
-        results.append(r)
-        events += ev
-    return (
-        dataclasses.replace(state, targets=tuple(new)),
-        FrameResult(
-            frames.index,
-            tuple(results),
-            tuple(events),
-            {"kalman_camshift": time.perf_counter() - t0},
-        ),
-    )

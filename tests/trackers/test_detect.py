@@ -45,7 +45,7 @@ def test_image_term_is_what_keeps_identities_when_state_is_ambiguous(scene, tmp_
             out_dir=tmp_path / "s",
             rrd=False,
             plots=False,
-            sets=["association.use_image=false"],
+            sets=["detect.association.use_image=false"],
         ),
     )
     assert fused.summary["metrics"]["idf1"] >= state.summary["metrics"]["idf1"] - 0.02
@@ -105,16 +105,20 @@ def test_a_track_seen_a_few_times_coasts_a_few_frames(coast_per_hit, max_misses,
     coast_per_hit x 5 (2.5: its 3rd missing frame, frame 8), not after association.max_misses (30:
     frame 36) of coasting on nothing; with the default max_misses (1), on its 2nd missing frame."""
     from pipeline.config import load_config
-    from pipeline.trackers.detect import init, step
+    from pipeline.trackers.detect import DetectAndAssociate
     from pipeline.types import TargetStatus
 
     cfg = load_config(
         None,
-        [f"association.coast_per_hit={coast_per_hit}", f"association.max_misses={max_misses}"],
+        [
+            f"detect.association.coast_per_hit={coast_per_hit}",
+            f"detect.association.max_misses={max_misses}",
+        ],
     )
+    core = DetectAndAssociate(cfg.detect)
     state, lost = None, None
     for fp in _blob_frames(5, 40):
-        state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
+        state, res = core.init(fp, []) if state is None else core.step(state, fp)
         if lost is None and any(r.status == TargetStatus.LOST for r in res.targets):
             lost = fp.index
     assert lost == lost_at
@@ -164,7 +168,7 @@ def test_the_runner_gives_the_detect_tracker_the_sequence_background(scene):
     from pipeline.trackers.base import attach_sequence
 
     seq = open_sequence(scene("crossing2"))
-    for sets, static in (([], True), (["detection.background_init=first-frame"], False)):
+    for sets, static in (([], True), (["detect.detection.background_init=first-frame"], False)):
         engine = make_tracker("detect", load_config(None, sets))
         attach_sequence(engine, seq)
         frames = seq.frames()
@@ -190,12 +194,13 @@ def _gap_frames(gap: tuple[int, int], n_total: int, jump_px: int = 0):
 
 
 def _ids_by_frame(frames, cfg):
-    from pipeline.trackers.detect import init, step
+    from pipeline.trackers.detect import DetectAndAssociate
     from pipeline.types import TargetStatus
 
+    core = DetectAndAssociate(cfg.detect)
     state, ids = None, {}
     for fp in frames:
-        state, res = init(fp, [], cfg) if state is None else step(state, fp, cfg)
+        state, res = core.init(fp, []) if state is None else core.step(state, fp)
         ids[fp.index] = [r.id for r in res.targets if r.status == TargetStatus.TRACKING]
     return ids
 
@@ -216,8 +221,8 @@ def test_a_target_lost_and_found_again_keeps_its_identity(relink_frames, resume,
     cfg = load_config(
         None,
         [
-            f"association.relink_frames={relink_frames}",
-            f"association.resume_min_correlation={resume}",
+            f"detect.association.relink_frames={relink_frames}",
+            f"detect.association.resume_min_correlation={resume}",
         ],
     )
     ids = _ids_by_frame(_gap_frames((21, 45), 60, jump_px), cfg)
@@ -244,7 +249,7 @@ def test_the_tracker_leaves_regions_under_its_own_floor_to_the_detector(min_peri
             ir[50:62, 20 + 3 * k : 25 + 3 * k] = 140
             yield FramePair(k + 1, None, ir)
 
-    cfg = load_config(None, [f"association.min_perimeter_px={min_perimeter_px}"])
+    cfg = load_config(None, [f"detect.association.min_perimeter_px={min_perimeter_px}"])
     ids = _ids_by_frame(frames(), cfg)
     assert (ids[15] != []) == tracked
 
@@ -270,7 +275,7 @@ def test_the_tracker_uses_the_visible_channel_s_regions_only_on_request(
         (tmp_path / f"{ch}.txt").write_text(
             "".join(f"{10 + 5 * k},50,10,24\n" for k in range(len(frames)))
         )
-    cfg = load_config(None, [f"association.use_visible_regions={str(use_visible).lower()}"])
+    cfg = load_config(None, [f"detect.association.use_visible_regions={str(use_visible).lower()}"])
     res = track(tmp_path, tracker="detect", config=cfg)
     boxes = [t.box for t in res[15].targets if t.status.value == "tracking"]
     assert (len(boxes) == 1) == tracked

@@ -11,7 +11,7 @@ import pytest
 from pipeline.config import load_config
 from pipeline.errors import ConfigError
 from pipeline.run import RunOptions, run_track, track
-from pipeline.trackers.dual import Case, DualConfig, scale_update
+from pipeline.trackers.dual import Case, DualConfig, Rule, scale_update
 from tests.rrd_helpers import open_store, rows
 
 SCENES = (
@@ -33,43 +33,33 @@ def test_scale_update_eq7():
 
 
 def test_the_colour_extent_widens_the_box_and_never_shrinks_it_below_the_filter():
-    """fused_size: a wider extent moves the width at eq. 7's rate past the filter's 1.25 bound (up
-    to ``extent.max_ratio``); a narrower one pulls only down to the filter's size; without the cue
-    the size stays within ``scale_agree_ratio`` of the filter's."""
-    from pipeline.trackers.dual.cues import AppearanceCue
-    from pipeline.trackers.dual.decide import Decision
-    from pipeline.trackers.dual.update import fused_size
-    from pipeline.types import BBox, TargetStatus
+    """The size part: a wider extent moves the width at eq. 7's rate past the filter's 1.25 bound
+    (up to ``extent.max_ratio``); a narrower one pulls only down to the filter's size; without
+    the extent part the size stays within ``scale_agree_ratio`` of the filter's."""
+    from pipeline.tracker_config import SizeConfig
+    from pipeline.trackers.dual.appearance import FilterCue
+    from pipeline.trackers.dual.decide import decision
+    from pipeline.trackers.dual.size import SizeModel
+    from pipeline.types import BBox
 
-    dcfg = DualConfig()
-    dec = Decision(
-        Case.APPEARANCE,
-        BBox.from_center(50, 50, 10, 30),
-        1.0,
-        TargetStatus.TRACKING,
-        "test",
-        True,
-        False,
-        "appearance",
-    )
-    cue = AppearanceCue(BBox.from_center(50, 50, 10, 30), 20.0, 1.0, False)
+    model = SizeModel(SizeConfig())
+    dec = decision(Case.APPEARANCE, Rule.APPEARANCE_OVER_CONTOUR, BBox.from_center(50, 50, 10, 30))
+    cue = FilterCue(BBox.from_center(50, 50, 10, 30), 20.0, 1.0, False)
+
+    def update(size, extent, ratio):
+        return model.update(size, (10.0, 30.0), dec, None, cue, True, extent, ratio)
+
     wide = BBox.from_center(50, 50, 20, 30)
-    size, app_size = fused_size((10.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, wide, 1.8)
+    size, app_size = update((10.0, 30.0), wide, 1.8)
     assert size == pytest.approx((12.0, 30.0)) and app_size == (10.0, 30.0)
     for _ in range(30):
-        size, _ = fused_size(size, (10.0, 30.0), dec, None, cue, dcfg, 6.0, wide, 1.8)
+        size, _ = update(size, wide, 1.8)
     assert size == pytest.approx((18.0, 30.0))  # held at 1.8 x the filter's width
-    narrow = BBox.from_center(50, 50, 6, 20)
-    size, _ = fused_size((12.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, narrow, 1.8)
+    size, _ = update((12.0, 30.0), BBox.from_center(50, 50, 6, 20), 1.8)
     assert size == pytest.approx((11.6, 30.0))  # towards the filter's 10, not the extent's 6
-    # without the cue (the caller passes no extent and a ratio of 1) the size is held within
-    # scale_agree_ratio
-    assert fused_size((15.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, None, 1.0)[
-        0
-    ] == pytest.approx((12.5, 30.0))
-    assert fused_size((15.0, 30.0), (10.0, 30.0), dec, None, cue, dcfg, 6.0, None, 1.8)[
-        0
-    ] == pytest.approx((15.0, 30.0))
+    # without the extent part (no extent, a ratio of 1) the size is held within scale_agree_ratio
+    assert update((15.0, 30.0), None, 1.0)[0] == pytest.approx((12.5, 30.0))
+    assert update((15.0, 30.0), None, 1.8)[0] == pytest.approx((15.0, 30.0))
 
 
 def test_the_box_follows_a_walking_persons_stride(tmp_path):
@@ -89,7 +79,7 @@ def test_the_box_follows_a_walking_persons_stride(tmp_path):
                 out_dir=tmp_path / str(on),
                 rrd=False,
                 plots=False,
-                sets=[f"dual.extent_cue={str(on).lower()}"],
+                sets=[] if on else ["dual.extent=none"],
             ),
         )
         table = list(csv.DictReader((res.out_dir / "targets.csv").read_text().splitlines()))
@@ -116,7 +106,7 @@ def test_a_target_that_turns_while_hidden_is_searched_for_where_it_was_seen(tmp_
                 out_dir=tmp_path / str(on),
                 rrd=False,
                 plots=False,
-                sets=[f"dual.redetect_last_seen={str(on).lower()}"],
+                sets=[f"dual.redetect.last_seen={str(on).lower()}"],
             ),
         )
         p20[on] = res.summary["metrics"]["targets"]["1"]["p20"]
@@ -140,7 +130,7 @@ def test_a_fast_turning_target_is_measured_within_the_predictions_uncertainty(tm
                 out_dir=tmp_path / str(k),
                 rrd=False,
                 plots=False,
-                sets=[f"dual.jump_sigma={k}"],
+                sets=[f"dual.decider.jump_sigma={k}"],
             ),
         )
         p20[k] = res.summary["metrics"]["p20"]
@@ -160,43 +150,38 @@ def test_a_confident_peak_on_what_hid_the_target_does_not_stop_its_search(tmp_pa
 
 
 def test_a_target_found_again_restarts_its_motion_at_rest():
-    """motion_update: a lost target re-acquired 100 px from where it was believed to be gets the
-    measured position and zero velocity (the jump is not its motion); re-acquired near its
+    """The motion part: a lost target re-acquired 100 px from where it was believed to be gets
+    the measured position and zero velocity (the jump is not its motion); re-acquired near its
     prediction after an occlusion, the Kalman correction keeps its velocity."""
-    from pipeline.config import PipelineConfig
     from pipeline.stages import kalman
-    from pipeline.trackers.dual.cues import ColourStep
-    from pipeline.trackers.dual.decide import Decision
+    from pipeline.trackers.dual.decide import decision
+    from pipeline.trackers.dual.motion import Motion
     from pipeline.trackers.dual.state import DualTarget
-    from pipeline.trackers.dual.update import motion_update
     from pipeline.types import BBox, TargetStatus
 
-    cfg = PipelineConfig()
+    cfg = DualConfig()
+    motion = Motion(cfg.motion, cfg.kalman)
     kf = kalman.init_state(BBox.from_center(300, 100, 12, 30), cfg.kalman)
     kf = kalman.GaussianState(np.r_[kf.x[:4], 8.0, 0.0, kf.x[6:]], kf.P * 50)
     found = BBox.from_center(200, 100, 12, 30)
-    for status, why, moving in (
-        (TargetStatus.LOST, "appearance-near-prediction", False),
-        (TargetStatus.OCCLUDED_PARTIAL, "redetected", False),
-        (TargetStatus.OCCLUDED_PARTIAL, "appearance-near-prediction", True),
+    for status, rule, moving in (
+        (TargetStatus.LOST, Rule.APPEARANCE_NEAR_PREDICTION, False),
+        (TargetStatus.OCCLUDED_PARTIAL, Rule.REDETECTED, False),
+        (TargetStatus.OCCLUDED_PARTIAL, Rule.APPEARANCE_NEAR_PREDICTION, True),
     ):
         t = DualTarget(1, found, (12.0, 30.0), np.ones(4) / 4, status, kf, missing=5)
-        cs = ColourStep(
-            t, kf, (300.0, 100.0), (300.0, 100.0), float("nan"), True, 1.0, None, (0, 0), 0
-        )
-        dec = Decision(
-            Case.REACQUIRED, found, 1.5, TargetStatus.TRACKING, why, False, False, "appearance"
-        )
-        new, history, _ = motion_update(cs, dec, found, 50, cfg.dual, cfg.kalman, ())
+        dec = decision(Case.REACQUIRED, rule, found, 1.5, stage="appearance")
+        new, history, _ = motion.update(t, kf, dec, found, 50)
         if moving:
-            assert abs(new.x[4]) > 1.0, why
+            assert abs(new.x[4]) > 1.0, rule
         else:
-            assert tuple(new.x[:2]) == (200.0, 100.0) and not new.x[4:].any(), (status, why)
+            assert tuple(new.x[:2]) == (200.0, 100.0) and not new.x[4:].any(), (status, rule)
             assert history == ((50.0, 200.0, 100.0, 12.0, 30.0),)
 
 
 def test_recent_speed_and_last_seen():
-    from pipeline.trackers.dual.cues import last_seen, recent_speed
+    from pipeline.tracker_config import RedetectConfig
+    from pipeline.trackers.dual.redetect import Redetector, recent_speed
     from pipeline.trackers.dual.state import DualTarget
 
     t = DualTarget.__new__(DualTarget)
@@ -204,10 +189,10 @@ def test_recent_speed_and_last_seen():
         t, "history", ((10.0, 100.0, 50.0, 10.0, 20.0), (14.0, 112.0, 66.0, 10.0, 20.0))
     )
     assert recent_speed(t) == pytest.approx(5.0)
-    assert last_seen(t, DualConfig()) == (112.0, 66.0)
-    assert last_seen(t, DualConfig(redetect_last_seen=False)) is None
+    assert Redetector(RedetectConfig()).last_seen(t) == (112.0, 66.0)
+    assert Redetector(RedetectConfig(last_seen=False)).last_seen(t) is None
     object.__setattr__(t, "history", ())
-    assert recent_speed(t) == 0.0 and last_seen(t, DualConfig()) is None
+    assert recent_speed(t) == 0.0 and Redetector(RedetectConfig()).last_seen(t) is None
 
 
 def test_acceptance_on_the_synthetic_scenes(scene, tmp_path):
@@ -257,7 +242,7 @@ def test_strong_colour_carries_a_target_whose_contour_fails(scene, tmp_path):
             out_dir=tmp_path / "a",
             rrd=False,
             plots=False,
-            sets=["dual.appearance_cue=false"],
+            sets=["dual.appearance=none"],
         ),
     )
     coasting = run_track(
@@ -267,7 +252,7 @@ def test_strong_colour_carries_a_target_whose_contour_fails(scene, tmp_path):
             out_dir=tmp_path / "b",
             rrd=False,
             plots=False,
-            sets=["dual.appearance_cue=false", "dual.colour_trust_rho=1"],
+            sets=["dual.appearance=none", "dual.decider.colour_trust_rho=1"],
         ),
     )
     assert trusted.summary["metrics"]["p20"] >= 0.95
@@ -331,17 +316,19 @@ def test_visible_only_mode_is_the_same_tracker_with_the_visible_cues(realdata, t
 @pytest.mark.parametrize(
     "item",
     [
-        "dual.scale_rate=1.5",
-        "dual.max_missing_frames=0",
-        "levelset.timestep=9",
-        "contour.cold_start_scale=0.5",
-        "model_update.rank_rule=best",
+        "dual.size.scale_rate=1.5",
+        "dual.lifecycle.max_missing_frames=0",
+        "dual.levelset.timestep=9",
+        "dual.contour.cold_start_scale=0.5",
+        "dual.model_update.rank_rule=best",
+        "dual.contour.start_at=nowhere",
+        "dual.motion.search_from=nowhere",
     ],
 )
 def test_bad_configs_rejected(item):
-    with pytest.raises(ConfigError):
+    with pytest.raises(ConfigError, match=item.split("=")[0].replace(".", "\\.")):
         load_config(None, [item])
-    assert DualConfig().scale_rate == 0.2
+    assert DualConfig().size.scale_rate == 0.2
 
 
 def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_background():
@@ -352,7 +339,8 @@ def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_backgr
 
     from pipeline.io.sequence import FramePair
     from pipeline.stages.detection import DetectionConfig, quantile_background
-    from pipeline.trackers.dual.cues import frame_candidates
+    from pipeline.tracker_config import RedetectConfig
+    from pipeline.trackers.dual.redetect import Redetector
 
     rng = np.random.default_rng(11)
     ground = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 3)  # textured ground
@@ -362,13 +350,13 @@ def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_backgr
         x = 20 + 10 * k
         img[80:136, x : x + 22] += 12
         frames.append(np.clip(img, 0, 255).astype(np.uint8))
-    cfg = load_config(None, [])
+    search = Redetector(RedetectConfig(candidates=4))
     bg = quantile_background(frames, DetectionConfig())
     fp = FramePair(13, None, frames[12])
     truth = (20 + 120 + 11, 108)
-    with_bg = frame_candidates(fp, (22, 56), cfg, 4, bg)
+    with_bg = search.frame_candidates(fp, (22, 56), bg)
     assert len(with_bg) == 1 and with_bg[0] == pytest.approx(truth, abs=2.0)
-    own = frame_candidates(fp, (22, 56), cfg, 4)  # missed, or a piece of him joined to the texture
+    own = search.frame_candidates(fp, (22, 56))  # missed, or a piece of him joined to the texture
     assert not any(abs(c[0] - truth[0]) < 4 and abs(c[1] - truth[1]) < 4 for c in own), own
 
 
@@ -387,7 +375,9 @@ def test_the_runner_gives_the_dual_tracker_the_sequence_background(scene):
     assert (
         callable(engine.state.background) and engine.state.background().static
     )  # read only when asked
-    plain = make_tracker("dual", load_config(None, ["detection.background_init=first-frame"]))
+    plain = make_tracker(
+        "dual", load_config(None, ["dual.redetect.detection.background_init=first-frame"])
+    )
     attach_sequence(plain, seq)
     plain.start(seq.frame(1), [InitTarget(1, BBox(*seq.truth.primary()[1][0]))])
     assert plain.state.background is None

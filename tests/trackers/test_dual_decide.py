@@ -1,4 +1,4 @@
-"""The dual tracker's decision function, case by case (``pipeline.trackers.dual.decide``)."""
+"""The dual tracker's decision, rule by rule (``pipeline.trackers.dual.decide``)."""
 
 from __future__ import annotations
 
@@ -7,10 +7,14 @@ import math
 
 import pytest
 
-from pipeline.trackers.dual import Case, DualConfig, Evidence, decide
+from pipeline.tracker_config import DeciderConfig, LifecycleConfig, RedetectConfig, SizeConfig
+from pipeline.trackers.dual import Case, Decider, Decision, Evidence, Rule
+from pipeline.trackers.dual.decide import MISSING, TRACKED
+from pipeline.trackers.dual.lifecycle import Lifecycle
 from pipeline.types import BBox, TargetStatus
 
-CFG = DualConfig()
+CFG = DeciderConfig()
+LIFE = LifecycleConfig()
 NAN = math.nan
 SIZE = (20.0, 50.0)
 PRIOR = BBox.from_center(100, 100, *SIZE)
@@ -18,6 +22,11 @@ PRIOR = BBox.from_center(100, 100, *SIZE)
 
 def at(cx: float, cy: float = 100.0, w: float = SIZE[0], h: float = SIZE[1]) -> BBox:
     return BBox.from_center(cx, cy, w, h)
+
+
+def decide(ev: Evidence, cfg: DeciderConfig = CFG) -> Decision:
+    """The decider's decision, settled by the lifecycle (a coast gone on too long is lost)."""
+    return Lifecycle(LIFE).settle(Decider(cfg).decide(ev), ev)
 
 
 def evidence(**kw) -> Evidence:
@@ -66,34 +75,34 @@ def missing(frames: int = 5, **kw) -> Evidence:
 
 
 def test_contour_confirmed_by_the_filter():
-    d = decide(evidence(), CFG)
-    assert (d.case, d.status, d.why, d.stage) == (
+    d = decide(evidence())
+    assert (d.case, d.status, d.rule, d.stage) == (
         Case.CONTOUR,
         TargetStatus.TRACKING,
-        "contour-and-appearance",
+        Rule.CONTOUR_AND_APPEARANCE,
         "levelset",
     )
     assert d.box == at(100.5) and d.contour_scale and d.learn and d.noise == 1.0
 
 
 def test_appearance_decides_where_the_contour_fails():
-    d = decide(evidence(contour_ok=False, contour_reason="leak", contour_box=at(110, w=60)), CFG)
-    assert (d.case, d.status, d.why, d.stage) == (
+    d = decide(evidence(contour_ok=False, contour_reason="leak", contour_box=at(110, w=60)))
+    assert (d.case, d.status, d.rule, d.stage) == (
         Case.APPEARANCE,
         TargetStatus.TRACKING,
-        "appearance-contour-leak",
+        Rule.APPEARANCE_CONTOUR_FAILED,
         "appearance",
     )
     assert d.box == at(100.2) and not d.contour_scale and d.learn
 
 
 def test_appearance_decides_where_contour_and_filter_disagree():
-    d = decide(evidence(contour_box=at(111)), CFG)  # the contour went 11 px (0.55 widths) aside
-    assert (d.case, d.why) == (Case.APPEARANCE, "appearance-over-contour")
+    d = decide(evidence(contour_box=at(111)))  # the contour went 11 px (0.55 widths) aside
+    assert (d.case, d.rule) == (Case.APPEARANCE, Rule.APPEARANCE_OVER_CONTOUR)
 
 
 def test_a_cut_contour_with_the_filter_is_a_partial_occlusion():
-    d = decide(evidence(contour_box=at(100, 115, h=20)), CFG)  # 40 % of the usual box
+    d = decide(evidence(contour_box=at(100, 115, h=20)))  # 40 % of the usual box
     assert (d.case, d.status) == (Case.APPEARANCE, TargetStatus.OCCLUDED_PARTIAL)
     assert not d.learn  # an occluder in front does not teach the models
 
@@ -101,39 +110,37 @@ def test_a_cut_contour_with_the_filter_is_a_partial_occlusion():
 def test_a_sharp_contour_carries_the_target_through_a_colour_change():
     """A shadow: the colour at the contour falls under colour_min_rho, no colour matches better
     elsewhere."""
-    d = decide(evidence(rho_contour=0.4, rho_meanshift=0.45, rho_appearance=0.4, psr=4.0), CFG)
-    assert (d.case, d.status, d.why) == (
+    d = decide(evidence(rho_contour=0.4, rho_meanshift=0.45, rho_appearance=0.4, psr=4.0))
+    assert (d.case, d.status, d.rule) == (
         Case.CONTOUR,
         TargetStatus.TRACKING,
-        "contour-colour-changed",
+        Rule.CONTOUR_COLOUR_CHANGED,
     )
     assert not d.learn
 
 
 def test_a_contour_without_the_filter_is_taken():
-    d = decide(evidence(appearance_box=None, psr=NAN), CFG)
-    assert (d.case, d.why) == (Case.CONTOUR, "contour") and d.learn
+    d = decide(evidence(appearance_box=None, psr=NAN))
+    assert (d.case, d.rule) == (Case.CONTOUR, Rule.CONTOUR) and d.learn
 
 
 def test_strong_colour_elsewhere_overrides_an_unconfirmed_contour():
-    d = decide(evidence(psr=4.0, meanshift_box=at(115), rho_meanshift=0.95), CFG)
-    assert (d.case, d.why, d.stage) == (Case.COLOUR, "colour-against-contour", "meanshift")
+    d = decide(evidence(psr=4.0, meanshift_box=at(115), rho_meanshift=0.95))
+    assert (d.case, d.rule, d.stage) == (Case.COLOUR, Rule.COLOUR_AGAINST_CONTOUR, "meanshift")
     assert (d.box.w, d.box.h) == SIZE and d.box.cx == 115  # at the mean shift, the usual size
 
 
 def test_colour_carries_the_target_through_ir_clutter():
-    d = decide(
-        evidence(psr=3.0, contour_ok=False, contour_reason="too-large", rho_meanshift=0.9), CFG
-    )
-    assert (d.case, d.why) == (Case.COLOUR, "colour-contour-too-large")
+    d = decide(evidence(psr=3.0, contour_ok=False, contour_reason="too-large", rho_meanshift=0.9))
+    assert (d.case, d.rule) == (Case.COLOUR, Rule.COLOUR_CONTOUR_FAILED)
     assert not d.learn and d.noise == 2.0
 
 
 def test_colour_carries_the_target_through_thermal_crossover():
     d = decide(
-        evidence(psr=3.0, contour_ok=False, contour_reason="low-contrast", rho_meanshift=0.8), CFG
+        evidence(psr=3.0, contour_ok=False, contour_reason="low-contrast", rho_meanshift=0.8)
     )
-    assert (d.case, d.why) == (Case.COLOUR, "colour-ir-faded")
+    assert (d.case, d.rule) == (Case.COLOUR, Rule.COLOUR_IR_FADED)
 
 
 def test_colour_that_clearly_matches_elsewhere_vetoes_contour_and_filter():
@@ -148,7 +155,7 @@ def test_colour_that_clearly_matches_elsewhere_vetoes_contour_and_filter():
 
 def test_a_measurement_out_of_reach_is_not_taken():
     far = at(100 + 2 * SIZE[0])  # two widths from the prediction and from the last box
-    d = decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far), CFG)
+    d = decide(evidence(appearance_box=far, contour_box=far, meanshift_box=far))
     assert d.case == Case.COAST and not d.measured
 
 
@@ -172,7 +179,7 @@ def test_the_reach_grows_with_the_predictions_uncertainty():
             evidence(
                 appearance_box=far, contour_box=far, meanshift_box=far, prior_std_px=(8.0, 8.0)
             ),
-            DualConfig(jump_sigma=0.0),
+            DeciderConfig(jump_sigma=0.0),
         ).case
         == Case.COAST
     )
@@ -192,10 +199,10 @@ def test_nothing_measured_coasts():
         ),
         CFG,
     )
-    assert (d.case, d.status, d.why, d.stage) == (
+    assert (d.case, d.status, d.rule, d.stage) == (
         Case.COAST,
         TargetStatus.OCCLUDED_SEVERE,
-        "no-evidence",
+        Rule.NO_EVIDENCE,
         "kalman",
     )
     weak = decide(
@@ -209,10 +216,10 @@ def test_nothing_measured_coasts():
         ),
         CFG,
     )
-    assert (weak.case, weak.status, weak.why) == (
+    assert (weak.case, weak.status, weak.rule) == (
         Case.COAST,
         TargetStatus.OCCLUDED_PARTIAL,
-        "partial-evidence",
+        Rule.PARTIAL_EVIDENCE,
     )
 
 
@@ -220,39 +227,35 @@ def test_nothing_measured_coasts():
 
 
 def test_the_filter_takes_a_hidden_target_back_near_its_prediction():
-    d = decide(missing(appearance_box=at(104), psr=12.0, rho_appearance=0.8), CFG)
-    assert (d.case, d.status, d.why, d.stage) == (
+    d = decide(missing(appearance_box=at(104), psr=12.0, rho_appearance=0.8))
+    assert (d.case, d.status, d.rule, d.stage) == (
         Case.REACQUIRED,
         TargetStatus.TRACKING,
-        "appearance-near-prediction",
+        Rule.APPEARANCE_NEAR_PREDICTION,
         "appearance",
     )
     assert not d.learn
     assert (
-        decide(missing(appearance_box=at(104), psr=8.0), CFG).case == Case.COAST
+        decide(missing(appearance_box=at(104), psr=8.0)).case == Case.COAST
     )  # under psr_reacquire
 
 
 def test_redetection_far_away_needs_the_colour_to_agree():
     far = at(250)
-    ok = decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.8, redetected=True), CFG)
-    assert (ok.case, ok.why) == (Case.REACQUIRED, "redetected")
+    ok = decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.8, redetected=True))
+    assert (ok.case, ok.rule) == (Case.REACQUIRED, Rule.REDETECTED)
     assert (
-        decide(
-            missing(appearance_box=far, psr=12.0, rho_appearance=0.4, redetected=True), CFG
-        ).case
+        decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.4, redetected=True)).case
         == Case.COAST
     )
     assert (
-        decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.8), CFG).case == Case.COAST
+        decide(missing(appearance_box=far, psr=12.0, rho_appearance=0.8)).case == Case.COAST
     )  # not searched
 
 
 def test_a_contour_near_the_prediction_takes_it_back_when_the_colour_agrees():
-    d = decide(
-        missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.8), CFG
-    )
-    assert (d.case, d.why, d.stage) == (Case.REACQUIRED, "contour-near-prediction", "levelset")
+    d = decide(missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.8))
+    assert (d.case, d.rule, d.stage) == (Case.REACQUIRED, Rule.CONTOUR_NEAR_PREDICTION, "levelset")
     assert (
         d.contour_scale and not d.learn
     )  # the first frame back measures the size, teaches nothing
@@ -273,20 +276,20 @@ def test_a_contour_near_the_prediction_takes_it_back_when_the_colour_agrees():
 
 
 def test_strong_colour_near_the_prediction_takes_it_back():
-    d = decide(missing(meanshift_box=at(102), rho_meanshift=0.9), CFG)
-    assert (d.case, d.why) == (Case.REACQUIRED, "colour-near-prediction")
+    d = decide(missing(meanshift_box=at(102), rho_meanshift=0.9))
+    assert (d.case, d.rule) == (Case.REACQUIRED, Rule.COLOUR_NEAR_PREDICTION)
 
 
 def test_lost_after_max_missing_frames_or_out_of_the_frame():
-    d = decide(missing(frames=CFG.max_missing_frames), CFG)
-    assert (d.case, d.status, d.why) == (
+    d = decide(missing(frames=LIFE.max_missing_frames))
+    assert (d.case, d.status, d.rule) == (
         Case.LOST,
         TargetStatus.LOST,
-        f"{CFG.max_missing_frames + 1}-frames-without-a-measurement",
+        Rule.MISSING_TOO_LONG,
     )
-    assert decide(missing(frames=CFG.max_missing_frames - 1), CFG).case == Case.COAST
-    out = decide(missing(frames=2, outside=True), CFG)
-    assert (out.case, out.why) == (Case.LOST, "left-the-frame")
+    assert decide(missing(frames=LIFE.max_missing_frames - 1)).case == Case.COAST
+    out = decide(missing(frames=2, outside=True))
+    assert (out.case, out.rule) == (Case.LOST, Rule.LEFT_THE_FRAME)
 
 
 def test_a_lost_target_found_again_is_reacquired():
@@ -306,23 +309,26 @@ def test_one_channel_modes_use_the_same_rules():
     vis = evidence(
         contour_box=None, contour_ok=False, contour_reason="no-contour", rho_contour=NAN
     )
-    assert decide(vis, CFG).case == Case.APPEARANCE
-    assert decide(dataclasses.replace(vis, psr=3.0), CFG).case == Case.COLOUR
+    assert decide(vis).case == Case.APPEARANCE
+    assert decide(dataclasses.replace(vis, psr=3.0)).case == Case.COLOUR
     ir = evidence(psr=3.0, contour_ok=False, contour_reason="leak", rho_meanshift=0.9)
-    assert decide(ir, CFG).case == Case.COLOUR
+    assert decide(ir).case == Case.COLOUR
+
+
+NO_FILTER = dict(appearance_box=None, psr=NAN, rho_appearance=NAN)
+"""The evidence of a tracker composed without the appearance cue: no filter detection."""
 
 
 def test_without_the_filter_its_rules_never_apply():
-    cfg = dataclasses.replace(CFG, appearance_cue=False)
-    assert decide(evidence(), cfg).why == "contour"
-    d = decide(evidence(contour_ok=False, contour_reason="leak", rho_meanshift=0.5), cfg)
+    assert decide(evidence(**NO_FILTER)).rule == Rule.CONTOUR
+    d = decide(evidence(contour_ok=False, contour_reason="leak", rho_meanshift=0.5, **NO_FILTER))
     assert d.case == Case.COAST
-    assert decide(missing(appearance_box=at(104), psr=30.0), cfg).case == Case.COAST
+    assert decide(missing(**NO_FILTER)).case == Case.COAST
 
 
 def test_without_contour_checks_any_contour_is_clean():
-    cfg = dataclasses.replace(CFG, contour_checks=False, appearance_cue=False)
-    d = decide(evidence(contour_ok=False, contour_reason="leak", contour_box=at(100, h=20)), cfg)
+    leaking = dict(contour_ok=False, contour_reason="leak", contour_box=at(100, h=20))
+    d = decide(evidence(contour_checked=False, **leaking, **NO_FILTER))
     assert (d.case, d.status) == (
         Case.CONTOUR,
         TargetStatus.TRACKING,
@@ -330,16 +336,48 @@ def test_without_contour_checks_any_contour_is_clean():
 
 
 @pytest.mark.parametrize(
-    "name, value",
+    "cls, name, value",
     [
-        ("agree_fraction", 0.0),
-        ("jump_fraction", 6.0),
-        ("colour_veto_margin", 0.0),
-        ("scale_agree_ratio", 1.0),
-        ("psr_confident", -1.0),
-        ("redetect_every_frames", 0),
+        (DeciderConfig, "agree_fraction", 0.0),
+        (DeciderConfig, "jump_fraction", 6.0),
+        (DeciderConfig, "colour_veto_margin", 0.0),
+        (SizeConfig, "scale_agree_ratio", 1.0),
+        (DeciderConfig, "psr_confident", -1.0),
+        (RedetectConfig, "every_frames", 0),
     ],
 )
-def test_declared_ranges_are_enforced(name, value):
-    with pytest.raises(ValueError, match=f"dual.{name}"):
-        DualConfig(**{name: value})
+def test_declared_ranges_are_enforced(cls, name, value):
+    with pytest.raises(ValueError, match=f"{cls.section}.{name}"):
+        cls(**{name: value})
+
+
+# ------------------------------------------------------------------------------------ the table
+
+
+def test_the_why_text_is_made_from_the_rule_and_its_details():
+    """``targets.csv``'s ``decision`` column: ``case:why``, the why from the rule's name."""
+    d = decide(evidence(contour_ok=False, contour_reason="leak", contour_box=at(110, w=60)))
+    assert d.text == "appearance:appearance-contour-leak"
+    lost = decide(missing(frames=LIFE.max_missing_frames))
+    assert lost.text == f"lost:{LIFE.max_missing_frames + 1}-frames-without-a-measurement"
+    assert Rule.SPLIT_BLOB.text() == "split-blob" and Rule.MERGE_EQ11.text() == "eq11"
+
+
+def test_every_rule_of_the_tables_is_reached():
+    """Each rule of the two tables decides some evidence of this file (none is dead)."""
+    cases = [
+        evidence(),
+        evidence(contour_box=at(111)),
+        evidence(contour_ok=False, contour_reason="leak", contour_box=at(110, w=60)),
+        evidence(psr=4.0, meanshift_box=at(115), rho_meanshift=0.95),
+        evidence(rho_contour=0.4, rho_meanshift=0.45, rho_appearance=0.4, psr=4.0),
+        evidence(**NO_FILTER),
+        evidence(psr=3.0, contour_ok=False, contour_reason="too-large", rho_meanshift=0.9),
+        evidence(psr=3.0, contour_ok=False, contour_reason="low-contrast", rho_meanshift=0.8),
+        missing(appearance_box=at(250), psr=12.0, rho_appearance=0.8, redetected=True),
+        missing(appearance_box=at(104), psr=12.0, rho_appearance=0.8),
+        missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.8),
+        missing(meanshift_box=at(102), rho_meanshift=0.9),
+    ]
+    reached = {decide(ev).rule for ev in cases}
+    assert {r for r, _, _ in TRACKED + MISSING} <= reached

@@ -46,13 +46,13 @@ def test_group_of_three_merging_at_once(scene, tmp_path):
         scene("group3"),
         tmp_path,
         "merge",
-        ["dual.appearance_cue=false", "dual.merge_handling=true"],
+        ["dual.appearance=none", "dual.groups=default"],
     )
     coasting = metrics(
         scene("group3"),
         tmp_path,
         "coast",
-        ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_inside_blob=false"],
+        ["dual.appearance=none", "dual.groups.inside_blob=false"],
     )
     assert paper["purity"]["overall"] >= coasting["purity"]["overall"] + 0.03, (
         paper["purity"],
@@ -62,7 +62,7 @@ def test_group_of_three_merging_at_once(scene, tmp_path):
         scene("group3"),
         tmp_path,
         "indep",
-        ["dual.appearance_cue=false", "dual.merge_handling=false"],
+        ["dual.appearance=none", "dual.groups=none"],
     )
     assert paper["purity"]["overall"] >= indep["purity"]["overall"] + 0.1, (
         paper["purity"],
@@ -77,13 +77,13 @@ def test_lookalikes_need_the_beyond_the_paper_placement(scene, tmp_path):
         scene("meet-part"),
         tmp_path,
         "auto",
-        ["dual.appearance_cue=false", "dual.merge_handling=true"],
+        ["dual.appearance=none", "dual.groups=default"],
     )
     paper = metrics(
         scene("meet-part"),
         tmp_path,
         "eq11",
-        ["dual.appearance_cue=false", "dual.merge_handling=true", "dual.merge_position=eq11"],
+        ["dual.appearance=none", "dual.groups.merge_position=eq11"],
     )
     assert ours["purity"]["overall"] >= paper["purity"]["overall"] + 0.1, (
         ours["purity"],
@@ -95,7 +95,7 @@ def test_merge_and_split_events_roles_and_drawing(scene, tmp_path):
     out = run_track(
         scene("crossing2"),
         RunOptions(
-            tracker="dual", out_dir=tmp_path / "r", plots=False, sets=["dual.merge_handling=true"]
+            tracker="dual", out_dir=tmp_path / "r", plots=False, sets=["dual.groups=default"]
         ),
     ).out_dir
     table = list(csv.DictReader((out / "targets.csv").read_text().splitlines()))
@@ -135,3 +135,37 @@ def test_merge_and_split_events_roles_and_drawing(scene, tmp_path):
     thick = {lab.split()[0] for lab, rad in zip(labels, radii, strict=True) if rad < -2}
     assert thick == {f"T{fg}"}, (labels, radii)
     assert all(lab.endswith("merged") for lab in labels)
+
+
+def test_the_paper_s_tracker_runs_from_its_file_and_merges(scene, tmp_path):
+    """``--config data/dual-paper.toml``: the paper's composition (no filter, extent or
+    re-detector; eq. 10-11 groups) runs end to end on a crossing, where its targets merge and
+    split; the same composition from Python (:meth:`DualTracker.paper`) gives the same boxes."""
+    from pathlib import Path
+
+    from pipeline import DualTracker
+    from pipeline.io.sequence import open_sequence
+
+    paper = Path(__file__).resolve().parents[2] / "data" / "dual-paper.toml"
+    res = run_track(
+        scene("crossing2"),
+        RunOptions(out_dir=tmp_path / "p", config_path=paper, rrd=False, plots=False),
+    )
+    assert res.complete and res.summary["config"]["dual"]["appearance"] is None
+    table = list(csv.DictReader((tmp_path / "p" / "targets.csv").read_text().splitlines()))
+    assert {"merged", "tracking"} <= {r["status"] for r in table}
+    assert {r["decision"].split(":")[0] for r in table} <= {
+        "init",
+        "contour",
+        "colour",
+        "re-acquired",
+        "coast",
+        "lost",
+        "merged",
+    }
+    seq = open_sequence(scene("crossing2"))
+    frames = [(fp.visible, fp.infrared) for fp in seq.frames()]
+    boxes = [b.tolist() for b in seq.truth.primary().values()]
+    results = DualTracker.paper().track(frames, [b[0] for b in boxes])
+    for r, fr in zip(table[-2:], results[-1].targets, strict=True):
+        assert float(r["x_px"]) == pytest.approx(fr.box.x, abs=0.01)

@@ -64,7 +64,13 @@ def test_diagnostics_in_targets_csv_and_rrd(scene, tmp_path):
 def test_lost_then_reacquired_when_k0_is_small(scene):
     from pipeline.config import load_config
 
-    cfg = load_config(None, ["occlusion.max_severe_frames=3", "occlusion.distance_threshold=0.4"])
+    cfg = load_config(
+        None,
+        [
+            "kalman_camshift.occlusion.max_severe_frames=3",
+            "kalman_camshift.occlusion.distance_threshold=0.4",
+        ],
+    )
     res = track(scene("occluded-moving"), tracker="kalman-camshift", config=cfg)
     kinds = [e.kind.value for r in res for e in r.events]
     statuses = [r.targets[0].status.value for r in res]
@@ -95,10 +101,11 @@ def test_a_coasting_prediction_that_leaves_the_frame_ends_the_track():
 
     cfg = load_config(None, [])
     frames = _frames_of_a_red_square_that_vanishes(20, 80, 3.0)
-    state, _ = kc.init(frames[0], [InitTarget(1, BBox(40, 50, 20, 20))], cfg)
+    core = kc.KalmanCamShift(cfg.kalman_camshift)
+    state, _ = core.init(frames[0], [InitTarget(1, BBox(40, 50, 20, 20))])
     statuses, events = [], []
     for fp in frames[1:]:
-        state, res = kc.step(state, fp, cfg)
+        state, res = core.step(state, fp)
         statuses.append(res.targets[0].status)
         events += [e.text for e in res.events]
     assert statuses[10] == TargetStatus.TRACKING
@@ -119,14 +126,15 @@ def test_coasting_is_bounded_in_time():
     from pipeline.types import BBox, InitTarget, TargetStatus
 
     cfg = load_config(None, [])
-    cfg = replace(
-        cfg, occlusion=replace(cfg.occlusion, max_missing_frames=10, max_severe_frames=1000)
-    )
+    kcc = cfg.kalman_camshift
+    occlusion = replace(kcc.occlusion, max_missing_frames=10, max_severe_frames=1000)
+    cfg = replace(cfg, kalman_camshift=replace(kcc, occlusion=occlusion))
     frames = _frames_of_a_red_square_that_vanishes(10, 40, 0.0)  # it stays where it was, hidden
-    state, _ = kc.init(frames[0], [InitTarget(1, BBox(40, 50, 20, 20))], cfg)
+    core = kc.KalmanCamShift(cfg.kalman_camshift)
+    state, _ = core.init(frames[0], [InitTarget(1, BBox(40, 50, 20, 20))])
     statuses = []
     for fp in frames[1:]:
-        state, res = kc.step(state, fp, cfg)
+        state, res = core.step(state, fp)
         statuses.append(res.targets[0].status)
     assert statuses[8] == TargetStatus.TRACKING and statuses[-1] == TargetStatus.LOST
     assert statuses.index(TargetStatus.LOST) == 9 + 10  # the 11th frame without a measurement

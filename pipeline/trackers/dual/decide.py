@@ -1,62 +1,121 @@
 """The dual tracker's per-frame decision: which measurement a target gets, from which cue, and why.
 
-Every cue of a frame is summed up in an :class:`Evidence` (plain values, so the decision is
-testable case by case); :func:`decide` turns it into a :class:`Decision`: one of the named
-:class:`Case` values, the measurement box, its noise for the Kalman update, the status, and
-whether the models may learn from it. The same function serves the dual, the IR-only and
-the visible-only modes: a cue the mode lacks is simply absent.
+Every cue of a frame is summed up in an :class:`Evidence` (plain values); :class:`View` reads it
+once against the decider's thresholds (which cues are confident, within reach, vetoed by the
+colour); the :class:`Decider` then applies the first rule of an ordered table whose predicate
+holds, and the rule makes the :class:`Decision`: the :class:`Case`, the measurement box, its
+noise for the Kalman update, the status and whether the models may learn from it. The same
+table serves the dual, the IR-only and the visible-only modes: a cue the mode (or the
+configuration) lacks is simply absent from the evidence.
 
-The rules, in order (``agree`` = centres within ``agree_fraction`` of the target's size):
+The rules (:class:`Rule`; ``agree`` = centres within ``agree_fraction`` of the target's size):
 
-Tracked last frame
-    1. a clean contour that agrees with a confident filter detection: ``CONTOUR`` (both
-       confirm it; the contour's size may be used);
-    2. a confident filter detection, the contour failing or elsewhere: ``APPEARANCE`` (where
-       the channels disagree, appearance decides);
-    3. a clean contour, the filter unsure: ``CONTOUR`` unless a strong colour match says the
-       target is elsewhere (then ``COLOUR``): a sharp IR contour carries the target through
-       shadows and darkness, where its colour changes;
-    4. a strong colour match: ``COLOUR`` (colour carries it through IR clutter and crossover);
-    5. a contour lost to low contrast and a good colour match: ``COLOUR`` (thermal crossover);
-    6. nothing: ``COAST`` on the motion prior, ``occluded-partial`` with some evidence,
-       ``occluded-severe`` without.
+Tracked last frame (:data:`TRACKED`)
+    1. ``CONTOUR_AND_APPEARANCE``: a clean contour that agrees with a confident filter
+       detection (both confirm it; the contour's size may be used);
+    2. ``APPEARANCE_OVER_CONTOUR`` / ``APPEARANCE_CONTOUR_FAILED``: a confident filter
+       detection, the contour elsewhere or failing (where the channels disagree, appearance
+       decides);
+    3. ``COLOUR_AGAINST_CONTOUR``: a clean contour, the filter unsure, and a strong colour
+       match that says the target is elsewhere;
+    4. ``CONTOUR_COLOUR_CHANGED`` / ``CONTOUR``: a clean contour (a sharp IR contour carries
+       the target through shadows and darkness, where its colour changes);
+    5. ``COLOUR_CONTOUR_FAILED``: a strong colour match (colour carries it through IR clutter
+       and crossover);
+    6. ``COLOUR_IR_FADED``: a contour lost to low contrast and a good colour match;
+    then ``PARTIAL_EVIDENCE`` / ``NO_EVIDENCE``: a coast on the motion prior.
 
-Missing (hidden or lost)
-    7. a filter detection at ``psr_reacquire`` near the prediction, or found farther by the
-       re-detection search with a colour match (where colour is seen) at ``reacquire_rho``:
-       ``REACQUIRED``;
-    8. a clean contour near the prediction whose colour agrees (or no colour to ask):
-       ``REACQUIRED``;
-    9. a colour match at ``reacquire_rho`` near the prediction: ``REACQUIRED``;
-    10. else ``COAST``, and ``LOST`` once missing for ``max_missing_frames`` or out of the frame.
+Missing (hidden or lost; :data:`MISSING`)
+    7. ``REDETECTED`` / ``APPEARANCE_NEAR_PREDICTION``: a filter detection at ``psr_reacquire``
+       near the prediction, or found farther by the re-detection search with a colour match
+       (where colour is seen) at ``reacquire_rho``;
+    8. ``CONTOUR_NEAR_PREDICTION``: a clean contour near the prediction whose colour agrees (or
+       no colour to ask);
+    9. ``COLOUR_NEAR_PREDICTION``: a colour match at ``reacquire_rho`` near the prediction;
+    then a coast, which the lifecycle turns into ``LEFT_THE_FRAME`` or ``MISSING_TOO_LONG``.
 
-With ``appearance_cue`` off there is no filter detection and rules 1, 2 and 7 never apply;
-with ``contour_checks`` off every contour is clean (the paper).
+The other parts decide by rules of the same enum: ``SPLIT_BLOB`` (a member of a group that
+split takes its blob), ``WALKED_IN`` (a target given cut by the frame's border takes its first
+clean contour), the ``MERGE_*`` placements of a group's members and ``GIVEN`` (frame 1).
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from pipeline.stages.contour import ContourReason
-from pipeline.tracker_config import DualConfig
+from pipeline.tracker_config import DeciderConfig
 from pipeline.types import BBox, TargetStatus
 
-REDETECTED = "redetected"  # ``why`` of a target taken back by the widened or whole-frame search
+__all__ = [
+    "MISSING",
+    "TRACKED",
+    "Case",
+    "Decider",
+    "Decision",
+    "Evidence",
+    "Rule",
+    "View",
+    "agree",
+]
 
 
 class Case(enum.StrEnum):
-    """Where a frame's measurement of a target came from (``targets.csv`` ``decision``, the .rrd
-    timeline)."""
+    """Where a frame's measurement of a target came from (the first part of ``targets.csv``'s
+    ``decision``, and the .rrd timeline)."""
 
+    INIT = "init"
     CONTOUR = "contour"
     APPEARANCE = "appearance"
     COLOUR = "colour"
     REACQUIRED = "re-acquired"
     COAST = "coast"
     LOST = "lost"
+    MERGED = "merged"
+
+
+class Rule(enum.StrEnum):
+    """The named rules of the decision; the value is the ``why`` text (``targets.csv``'s
+    ``decision`` is ``case:why``), with the rule's details filled in by :meth:`text`."""
+
+    GIVEN = "given"
+    CONTOUR_AND_APPEARANCE = "contour-and-appearance"
+    APPEARANCE_OVER_CONTOUR = "appearance-over-contour"
+    APPEARANCE_CONTOUR_FAILED = "appearance-contour-{reason}"
+    COLOUR_AGAINST_CONTOUR = "colour-against-contour"
+    CONTOUR_COLOUR_CHANGED = "contour-colour-changed"
+    CONTOUR = "contour"
+    COLOUR_CONTOUR_FAILED = "colour-contour-{reason}"
+    COLOUR_IR_FADED = "colour-ir-faded"
+    REDETECTED = "redetected"
+    APPEARANCE_NEAR_PREDICTION = "appearance-near-prediction"
+    CONTOUR_NEAR_PREDICTION = "contour-near-prediction"
+    COLOUR_NEAR_PREDICTION = "colour-near-prediction"
+    PARTIAL_EVIDENCE = "partial-evidence"
+    NO_EVIDENCE = "no-evidence"
+    LEFT_THE_FRAME = "left-the-frame"
+    MISSING_TOO_LONG = "{missing}-frames-without-a-measurement"
+    SPLIT_BLOB = "split-blob"
+    WALKED_IN = "walked-in"
+    MERGE_FOREGROUND = "foreground"
+    MERGE_KMEANS = "kmeans"
+    MERGE_VISIBLE = "visible"
+    MERGE_EQ11 = "eq11"
+    MERGE_MOTION = "motion"
+
+    def text(self, reason: str = "", missing: int = 0) -> str:
+        """The ``why`` of this rule: its value with the contour's ``reason`` or the number of
+        ``missing`` frames filled in.
+
+        Examples
+        --------
+        >>> Rule.APPEARANCE_CONTOUR_FAILED.text(reason="leak")
+        'appearance-contour-leak'
+        """
+        return self.value.format(reason=reason, missing=missing)
 
 
 @dataclass(frozen=True)
@@ -77,17 +136,12 @@ class Evidence:
     appearance_box: BBox | None
     psr: float
     rho_appearance: float = float("nan")  # colour match at the filter's box
-    support: tuple[float, float] = (
-        float("nan"),
-        float("nan"),
-    )  # (visible, IR) PSR of each channel at the peak
+    support: tuple[float, float] = (float("nan"), float("nan"))  # (visible, IR) PSR at the peak
     last: BBox | None = None  # the previous output box
     redetected: bool = False  # the filter's detection came from the re-detection search
     outside: bool = False  # the prediction has left the frame
-    prior_std_px: tuple[float, float] = (
-        0.0,
-        0.0,
-    )  # standard deviation of the predicted centre (x, y)
+    prior_std_px: tuple[float, float] = (0.0, 0.0)  # std. deviation of the predicted centre (x, y)
+    contour_checked: bool = True  # the contour cue applies its failure tests (contour.checks)
 
     @property
     def ref_area(self) -> float:
@@ -96,10 +150,11 @@ class Evidence:
 
 @dataclass(frozen=True)
 class Decision:
-    """The outcome: the case, the measurement (None when coasting), its noise scale, the status and
-    why."""
+    """The outcome: the case, the rule, the measurement (None when coasting), its noise scale,
+    the status and why."""
 
     case: Case
+    rule: Rule
     box: BBox | None
     noise: float
     status: TargetStatus
@@ -112,16 +167,239 @@ class Decision:
     def measured(self) -> bool:
         return self.box is not None
 
+    @property
+    def text(self) -> str:
+        """``case:why``, as ``targets.csv``'s ``decision`` column writes it."""
+        return f"{self.case.value}:{self.why}"
+
+
+def decision(
+    case: Case,
+    rule: Rule,
+    box: BBox | None = None,
+    noise: float = 0.0,
+    status: TargetStatus = TargetStatus.TRACKING,
+    *,
+    reason: str = "",
+    missing: int = 0,
+    contour_scale: bool = False,
+    learn: bool = False,
+    stage: str = "kalman",
+) -> Decision:
+    """A :class:`Decision` whose ``why`` is ``rule``'s text (the one place it is made)."""
+    why = rule.text(reason=reason, missing=missing)
+    return Decision(case, rule, box, noise, status, why, contour_scale, learn, stage)
+
 
 def agree(a: BBox, b: BBox, size: tuple[float, float], fraction: float) -> bool:
     """Centres of ``a`` and ``b`` within ``fraction`` of ``size`` on each axis."""
     return abs(a.cx - b.cx) <= fraction * size[0] and abs(a.cy - b.cy) <= fraction * size[1]
 
 
-def near_prior(box: BBox, ev: Evidence, cfg: DualConfig) -> bool:
-    """Within half the target's size of the prediction, plus ``reacquire_gate_px_per_frame`` per
-    missing frame."""
-    return near_prediction(box.center, ev.prior.center, ev.ref_size, ev.missing, cfg)
+def _good(x: float, threshold: float) -> bool:
+    return not math.isnan(x) and x >= threshold
+
+
+def _resized(box: BBox | None, size: tuple[float, float]) -> BBox | None:
+    return None if box is None else BBox.from_center(box.cx, box.cy, size[0], size[1])
+
+
+def _clean(ev: Evidence) -> bool:
+    """A contour that passed its checks (or any contour, without them)."""
+    return ev.contour_box is not None and (ev.contour_ok or not ev.contour_checked)
+
+
+def _cut(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """A checked contour much smaller than the target: something stands in front of it."""
+    box = ev.contour_box
+    return (
+        ev.contour_checked and box is not None and box.area < cfg.partial_area_ratio * ev.ref_area
+    )
+
+
+def _strong_colour(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """A colour match at the mean shift strong enough to carry the target alone."""
+    if not ev.colour_informative or ev.meanshift_box is None or cfg.colour_trust_rho >= 1:
+        return False
+    return _good(ev.rho_meanshift, cfg.colour_trust_rho)
+
+
+def _colour_says_no(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """The colour at the contour contradicts it (under ``colour_min_rho``)."""
+    return (
+        ev.colour_informative
+        and not math.isnan(ev.rho_contour)
+        and ev.rho_contour < cfg.colour_min_rho
+    )
+
+
+@dataclass(frozen=True)
+class View:
+    """The evidence of one frame read once against the decider's thresholds.
+
+    For a target measured in the previous frame, ``contour_clean``, ``confident`` and
+    ``strong_colour`` are already narrowed to measurements within its reach, and a contour or
+    filter detection that a clearly better colour match elsewhere vetoes is no longer clean or
+    confident; for a missing target they are as the cues found them. ``cut`` (a clean contour
+    much smaller than the target) is as found.
+    """
+
+    ev: Evidence
+    cfg: DeciderConfig
+    appearance: bool  # the filter detected something
+    can_learn: bool  # the filter's detection is good enough to learn from (or there is none)
+    contour_clean: bool
+    cut: bool
+    confident: bool
+    strong_colour: bool
+    colour_says_no: bool  # the colour at the contour contradicts it
+
+    @classmethod
+    def of(cls, ev: Evidence, cfg: DeciderConfig) -> View:
+        """Read ``ev`` against ``cfg`` (the flags of the class doc)."""
+        appearance = ev.appearance_box is not None
+        clean = _clean(ev)
+        v = cls(
+            ev,
+            cfg,
+            appearance,
+            can_learn=not appearance or _good(ev.psr, cfg.psr_update),
+            contour_clean=clean,
+            cut=clean and _cut(ev, cfg),
+            confident=appearance and _good(ev.psr, cfg.psr_confident),
+            strong_colour=_strong_colour(ev, cfg),
+            colour_says_no=_colour_says_no(ev, cfg),
+        )
+        return v._narrowed() if ev.measured_last else v
+
+    def _narrowed(self) -> View:
+        """A tracked target moves by less than a share of its size from where it was or where
+        it is expected; where the colour is seen, a clearly better colour match elsewhere
+        vetoes a contour or a filter detection (the IR shape and the gradients of two people,
+        or two cars, are alike; their colours are not)."""
+        ev = self.ev
+        clean = self.contour_clean and self.within_reach(ev.contour_box)
+        confident = self.confident and self.within_reach(ev.appearance_box)
+        strong = self.strong_colour and self.within_reach(ev.meanshift_box)
+        says_no = self.colour_says_no
+        if clean and self.colour_elsewhere(ev.contour_box, ev.rho_contour):
+            clean, says_no = False, True
+        if confident and self.colour_elsewhere(ev.appearance_box, ev.rho_appearance):
+            confident = False
+        return View(
+            ev,
+            self.cfg,
+            self.appearance,
+            self.can_learn,
+            clean,
+            self.cut,
+            confident,
+            strong,
+            says_no,
+        )
+
+    # -- geometry --------------------------------------------------------------------------
+    def agree(self, a: BBox | None, b: BBox | None) -> bool:
+        """Both boxes exist and their centres agree (``agree_fraction`` of the size)."""
+        return (
+            a is not None
+            and b is not None
+            and agree(a, b, self.ev.ref_size, self.cfg.agree_fraction)
+        )
+
+    def within_reach(self, box: BBox) -> bool:
+        """Within ``jump_fraction`` of the target's size (on each axis) of its last box, or of
+        its prediction with ``jump_sigma`` standard deviations of the predicted centre added."""
+        ev, cfg = self.ev, self.cfg
+        k = cfg.jump_sigma
+
+        def near(ref: BBox | None, sx: float = 0.0, sy: float = 0.0) -> bool:
+            return ref is not None and (
+                abs(box.cx - ref.cx) <= cfg.jump_fraction * ev.ref_size[0] + sx
+                and abs(box.cy - ref.cy) <= cfg.jump_fraction * ev.ref_size[1] + sy
+            )
+
+        return near(ev.prior, k * ev.prior_std_px[0], k * ev.prior_std_px[1]) or near(ev.last)
+
+    def near_prior(self, box: BBox | None) -> bool:
+        """``box`` exists and lies near the prediction (:meth:`Decider.near_prediction`)."""
+        ev = self.ev
+        return box is not None and near_prediction(
+            box.center, ev.prior.center, ev.ref_size, ev.missing, self.cfg
+        )
+
+    def colour_elsewhere(self, box: BBox, rho_at: float) -> bool:
+        """The colour says the target is not at ``box``: the match there is under
+        ``colour_min_rho`` and the mean shift, away from it, matches better by
+        ``colour_veto_margin`` (and at least ``colour_min_rho``)."""
+        ev, cfg = self.ev, self.cfg
+        return (
+            ev.colour_informative
+            and ev.meanshift_box is not None
+            and not math.isnan(rho_at)
+            and rho_at < cfg.colour_min_rho
+            and _good(ev.rho_meanshift, cfg.colour_min_rho)
+            and ev.rho_meanshift - rho_at >= cfg.colour_veto_margin
+            and not agree(box, ev.meanshift_box, ev.ref_size, cfg.agree_fraction)
+        )
+
+    # -- shared readings -------------------------------------------------------------------
+    @property
+    def contour_usable(self) -> bool:
+        """A clean contour that is not cut by something in front."""
+        return self.contour_clean and not self.cut
+
+    @property
+    def contour_on_filter(self) -> bool:
+        """A usable contour where the filter's detection is."""
+        return self.contour_usable and self.agree(self.ev.contour_box, self.ev.appearance_box)
+
+    @property
+    def partial(self) -> bool:
+        """The filter measures a target that a cut or collapsed contour shows partly hidden."""
+        ev = self.ev
+        return self.cut or (ev.contour_reason == ContourReason.COLLAPSE and ev.contour_checked)
+
+    @property
+    def reacquirable(self) -> bool:
+        """A filter detection strong enough to take a missing target back, near the
+        prediction or (found by the re-detection search) with the colour agreeing."""
+        ev, cfg = self.ev, self.cfg
+        colour_agrees = (
+            not ev.colour_informative
+            or math.isnan(ev.rho_appearance)
+            or ev.rho_appearance >= cfg.reacquire_rho
+        )
+        return (
+            self.appearance
+            and _good(ev.psr, cfg.psr_reacquire)
+            and (self.near_prior(ev.appearance_box) or (ev.redetected and colour_agrees))
+        )
+
+    @property
+    def colour_seen(self) -> bool:
+        """A good enough colour match (``occlusion_rho``) at the mean shift."""
+        ev = self.ev
+        return (
+            ev.colour_informative
+            and ev.meanshift_box is not None
+            and _good(ev.rho_meanshift, self.cfg.occlusion_rho)
+        )
+
+    @property
+    def some_evidence(self) -> bool:
+        """Something of the target is seen although nothing measures it: ``occluded-partial``
+        rather than ``occluded-severe``."""
+        ev, cfg = self.ev, self.cfg
+        return (
+            self.cut
+            or (ev.contour_box is not None and ev.contour_ok)
+            or (ev.colour_informative and _good(ev.rho_meanshift, cfg.colour_min_rho))
+            or (
+                ev.appearance_box is not None
+                and _good(ev.psr, cfg.weak_psr_fraction * cfg.psr_confident)
+            )
+        )
 
 
 def near_prediction(
@@ -129,10 +407,10 @@ def near_prediction(
     predicted: tuple[float, float],
     ref_size: tuple[float, float],
     missing: int,
-    cfg: DualConfig,
+    cfg: DeciderConfig,
 ) -> bool:
-    """:func:`near_prior` on plain values: ``center`` within half of ``ref_size`` of ``predicted``,
-    plus ``reacquire_gate_px_per_frame`` per ``missing`` frame."""
+    """``center`` within half of ``ref_size`` of ``predicted``, plus
+    ``reacquire_gate_px_per_frame`` per ``missing`` frame."""
     extra = cfg.reacquire_gate_px_per_frame * missing
     return (
         abs(center[0] - predicted[0]) <= 0.5 * ref_size[0] + extra
@@ -140,274 +418,275 @@ def near_prediction(
     )
 
 
-def _good(x: float, threshold: float) -> bool:
-    return not math.isnan(x) and x >= threshold
+# ------------------------------------------------------------------------------ the rules
+# Each rule: (name, predicate over the view, the decision it makes). The first whose predicate
+# holds decides; predicates may assume the earlier rules did not apply.
+
+RuleSpec = tuple[Rule, Callable[[View], bool], Callable[[View], Decision]]
 
 
-def decide(ev: Evidence, cfg: DualConfig) -> Decision:
-    """The measurement of one target in one frame (the rules of the module doc, in order).
-
-    Examples
-    --------
-    A clean contour where a confident filter detection is (rule 1), then the same frame with the
-    contour leaking into a neighbour (rule 2):
-
-    >>> from pipeline.trackers.dual import DualConfig, Evidence, decide
-    >>> from pipeline.types import BBox
-    >>> at = lambda cx: BBox.from_center(cx, 100, 20, 50)
-    >>> ev = Evidence(measured_last=True, missing=0, prior=at(100), ref_size=(20, 50), colour_informative=True,
-    ...               rho_meanshift=0.9, meanshift_box=at(101), contour_box=at(100.5), contour_ok=True,
-    ...               contour_reason="ok", rho_contour=0.9, appearance_box=at(100.2), psr=15.0, rho_appearance=0.9)
-    >>> d = decide(ev, DualConfig())
-    >>> d.case.value, d.why, d.stage
-    ('contour', 'contour-and-appearance', 'levelset')
-    >>> import dataclasses
-    >>> d = decide(dataclasses.replace(ev, contour_ok=False, contour_reason="leak"), DualConfig())
-    >>> d.case.value, d.why, d.box == at(100.2)
-    ('appearance', 'appearance-contour-leak', True)
-    """
-    appearance = ev.appearance_box is not None and cfg.appearance_cue
-    confident = appearance and _good(ev.psr, cfg.psr_confident)
-    can_learn = (appearance and _good(ev.psr, cfg.psr_update)) or not appearance
-    contour = ev.contour_box
-    contour_clean = contour is not None and (ev.contour_ok or not cfg.contour_checks)
-    cut = (
-        contour_clean
-        and cfg.contour_checks
-        and contour.area < cfg.partial_area_ratio * ev.ref_area
-    )  # type: ignore[union-attr]
-    colour_says_no = (
-        ev.colour_informative
-        and not math.isnan(ev.rho_contour)
-        and ev.rho_contour < cfg.colour_min_rho
-    )
-    strong_colour = (
-        ev.colour_informative
-        and ev.meanshift_box is not None
-        and cfg.colour_trust_rho < 1
-        and _good(ev.rho_meanshift, cfg.colour_trust_rho)
+def _contour(v: View, rule: Rule, learn: bool) -> Decision:
+    return decision(
+        Case.CONTOUR,
+        rule,
+        v.ev.contour_box,
+        v.cfg.noise_scale_contour,
+        contour_scale=True,
+        learn=learn,
+        stage="levelset",
     )
 
-    if ev.measured_last:
-        # a tracked target moves by less than a share of its size from where it was or where it is
-        # expected
-        if contour_clean and not within_reach(contour, ev, cfg):  # type: ignore[arg-type]
-            contour_clean = False
-        if confident and not within_reach(ev.appearance_box, ev, cfg):  # type: ignore[arg-type]
-            confident = False
-        if strong_colour and not within_reach(ev.meanshift_box, ev, cfg):  # type: ignore[arg-type]
-            strong_colour = False
-        # where the colour is seen, a clearly better colour match elsewhere vetoes a contour or a
-        # filter detection: the IR shape and the gradients of two people, or two cars, are alike;
-        # their colours are not type: ignore[arg-type]
-        if contour_clean and colour_elsewhere(contour, ev.rho_contour, ev, cfg):
-            contour_clean, colour_says_no = False, True
-        # type: ignore[arg-type]
-        if confident and colour_elsewhere(ev.appearance_box, ev.rho_appearance, ev, cfg):
-            confident = False
-        # type: ignore[arg-type]
-        if contour_clean and not cut and confident and contour_agrees(contour, ev, cfg):
-            return Decision(
-                Case.CONTOUR,
-                contour,
-                1.0,
-                TargetStatus.TRACKING,
-                "contour-and-appearance",
-                True,
-                can_learn and not colour_says_no,
-                "levelset",
-            )
-        if confident:
-            partial = cut or (ev.contour_reason == ContourReason.COLLAPSE and cfg.contour_checks)
-            status = TargetStatus.OCCLUDED_PARTIAL if partial else TargetStatus.TRACKING
-            why = (
-                "appearance-over-contour"
-                if contour_clean
-                else f"appearance-contour-{ev.contour_reason}"
-            )
-            return Decision(
-                Case.APPEARANCE,
-                ev.appearance_box,
-                1.5,
-                status,
-                why,
-                False,
-                can_learn and not partial,
-                "appearance",
-            )
-        if contour_clean and not cut:
-            if strong_colour and not agree(
-                contour, ev.meanshift_box, ev.ref_size, cfg.agree_fraction
-            ):  # type: ignore[arg-type]
-                return Decision(
-                    Case.COLOUR,
-                    _resized(ev.meanshift_box, ev.ref_size),
-                    2.0,
-                    TargetStatus.TRACKING,
-                    "colour-against-contour",
-                    stage="meanshift",
-                )
-            # a sharp contour carries the target through colour changes (shadow, darkness); the
-            # models do not learn from a frame whose colour contradicts its contour
-            return Decision(
-                Case.CONTOUR,
-                contour,
-                1.0,
-                TargetStatus.TRACKING,
-                "contour-colour-changed" if colour_says_no else "contour",
-                True,
-                not colour_says_no and not appearance,
-                "levelset",
-            )
-        if strong_colour:
-            return Decision(
-                Case.COLOUR,
-                _resized(ev.meanshift_box, ev.ref_size),
-                2.0,
-                TargetStatus.TRACKING,
-                f"colour-contour-{ev.contour_reason}",
-                stage="meanshift",
-            )
-        if (
-            ev.contour_reason == ContourReason.LOW_CONTRAST
-            and ev.colour_informative
-            and ev.meanshift_box is not None
-            and _good(ev.rho_meanshift, cfg.occlusion_rho)
-        ):
-            return Decision(
-                Case.COLOUR,
-                _resized(ev.meanshift_box, ev.ref_size),
-                2.0,
-                TargetStatus.TRACKING,
-                "colour-ir-faded",
-                stage="meanshift",
-            )
-        return _coast(ev, cfg, cut)
 
-    # missing: taken back only by a confident cue near where it should be (or found by
-    # re-detection)
-    colour_agrees = (
+def _appearance(v: View, rule: Rule) -> Decision:
+    partial = v.partial
+    status = TargetStatus.OCCLUDED_PARTIAL if partial else TargetStatus.TRACKING
+    return decision(
+        Case.APPEARANCE,
+        rule,
+        v.ev.appearance_box,
+        v.cfg.noise_scale_appearance,
+        status,
+        reason=v.ev.contour_reason,
+        learn=v.can_learn and not partial,
+        stage="appearance",
+    )
+
+
+def _colour(v: View, rule: Rule, case: Case = Case.COLOUR) -> Decision:
+    box = _resized(v.ev.meanshift_box, v.ev.ref_size)
+    return decision(
+        case, rule, box, v.cfg.noise_scale_colour, reason=v.ev.contour_reason, stage="meanshift"
+    )
+
+
+def _reacquired_by_filter(v: View, rule: Rule) -> Decision:
+    on = v.contour_on_filter
+    return decision(
+        Case.REACQUIRED,
+        rule,
+        v.ev.contour_box if on else v.ev.appearance_box,
+        v.cfg.noise_scale_appearance,
+        stage="levelset" if on else "appearance",
+    )
+
+
+def _contour_near_prediction(v: View) -> bool:
+    ev = v.ev
+    confident_elsewhere = v.confident and ev.contour_box is not None and not v.contour_on_filter
+    colour_ok = (
         not ev.colour_informative
-        or math.isnan(ev.rho_appearance)
-        or ev.rho_appearance >= cfg.reacquire_rho
+        or _good(ev.rho_contour, v.cfg.reacquire_rho)
+        or math.isnan(ev.rho_contour)
     )
-    if (
-        appearance
-        and _good(ev.psr, cfg.psr_reacquire)
-        and (near_prior(ev.appearance_box, ev, cfg) or (ev.redetected and colour_agrees))
-    ):  # type: ignore[arg-type]
-        # type: ignore[arg-type]
-        on_contour = contour_clean and not cut and contour_agrees(contour, ev, cfg)
-        return Decision(
+    return (
+        v.contour_usable and v.near_prior(ev.contour_box) and not confident_elsewhere and colour_ok
+    )
+
+
+def _colour_near_prediction(v: View) -> bool:
+    ev = v.ev
+    return (
+        ev.colour_informative
+        and ev.meanshift_box is not None
+        and _good(ev.rho_meanshift, v.cfg.reacquire_rho)
+        and v.near_prior(ev.meanshift_box)
+        and (v.strong_colour or ev.contour_reason == ContourReason.LOW_CONTRAST)
+    )
+
+
+TRACKED: tuple[RuleSpec, ...] = (
+    (
+        Rule.CONTOUR_AND_APPEARANCE,
+        lambda v: v.contour_usable and v.confident and v.contour_on_filter,
+        lambda v: _contour(v, Rule.CONTOUR_AND_APPEARANCE, v.can_learn and not v.colour_says_no),
+    ),
+    (
+        Rule.APPEARANCE_OVER_CONTOUR,
+        lambda v: v.confident and v.contour_clean,
+        lambda v: _appearance(v, Rule.APPEARANCE_OVER_CONTOUR),
+    ),
+    (
+        Rule.APPEARANCE_CONTOUR_FAILED,
+        lambda v: v.confident,
+        lambda v: _appearance(v, Rule.APPEARANCE_CONTOUR_FAILED),
+    ),
+    (
+        Rule.COLOUR_AGAINST_CONTOUR,
+        lambda v: (
+            v.contour_usable
+            and v.strong_colour
+            and not v.agree(v.ev.contour_box, v.ev.meanshift_box)
+        ),
+        lambda v: _colour(v, Rule.COLOUR_AGAINST_CONTOUR),
+    ),
+    (
+        Rule.CONTOUR_COLOUR_CHANGED,
+        lambda v: v.contour_usable and v.colour_says_no,
+        lambda v: _contour(v, Rule.CONTOUR_COLOUR_CHANGED, False),
+    ),
+    (
+        Rule.CONTOUR,
+        lambda v: v.contour_usable,
+        lambda v: _contour(v, Rule.CONTOUR, not v.appearance),
+    ),
+    (
+        Rule.COLOUR_CONTOUR_FAILED,
+        lambda v: v.strong_colour,
+        lambda v: _colour(v, Rule.COLOUR_CONTOUR_FAILED),
+    ),
+    (
+        Rule.COLOUR_IR_FADED,
+        lambda v: v.ev.contour_reason == ContourReason.LOW_CONTRAST and v.colour_seen,
+        lambda v: _colour(v, Rule.COLOUR_IR_FADED),
+    ),
+)
+"""The rules for a target measured in the previous frame, in order."""
+
+MISSING: tuple[RuleSpec, ...] = (
+    (
+        Rule.REDETECTED,
+        lambda v: v.reacquirable and v.ev.redetected,
+        lambda v: _reacquired_by_filter(v, Rule.REDETECTED),
+    ),
+    (
+        Rule.APPEARANCE_NEAR_PREDICTION,
+        lambda v: v.reacquirable,
+        lambda v: _reacquired_by_filter(v, Rule.APPEARANCE_NEAR_PREDICTION),
+    ),
+    (
+        Rule.CONTOUR_NEAR_PREDICTION,
+        _contour_near_prediction,
+        lambda v: decision(
             Case.REACQUIRED,
-            contour if on_contour else ev.appearance_box,
-            1.5,
-            TargetStatus.TRACKING,
-            REDETECTED if ev.redetected else "appearance-near-prediction",
-            False,
-            False,
-            "levelset" if on_contour else "appearance",
+            Rule.CONTOUR_NEAR_PREDICTION,
+            v.ev.contour_box,
+            v.cfg.noise_scale_contour,
+            contour_scale=True,
+            stage="levelset",
+        ),
+    ),
+    (
+        Rule.COLOUR_NEAR_PREDICTION,
+        _colour_near_prediction,
+        lambda v: _colour(v, Rule.COLOUR_NEAR_PREDICTION, Case.REACQUIRED),
+    ),
+)
+"""The rules for a target missing (hidden or lost), in order."""
+
+
+def coast(v: View) -> Decision:
+    """No rule applies: the target coasts on its motion prior, ``occluded-partial`` with some
+    evidence of it, ``occluded-severe`` without."""
+    if v.some_evidence:
+        return decision(Case.COAST, Rule.PARTIAL_EVIDENCE, status=TargetStatus.OCCLUDED_PARTIAL)
+    return decision(Case.COAST, Rule.NO_EVIDENCE, status=TargetStatus.OCCLUDED_SEVERE)
+
+
+@dataclass(frozen=True)
+class Decider:
+    """The decision part of the dual tracker: the rule table over a frame's evidence, and the
+    thresholds the other parts read the cues by (``dual.decider``)."""
+
+    cfg: DeciderConfig
+
+    def decide(self, ev: Evidence) -> Decision:
+        """The measurement of one target in one frame: the first rule of :data:`TRACKED` (or
+        :data:`MISSING` for a target without a measurement last frame) that holds, else a
+        coast.
+
+        Examples
+        --------
+        A clean contour where a confident filter detection is (rule 1), then the same frame
+        with the contour leaking into a neighbour (rule 2):
+
+        >>> from pipeline.tracker_config import DeciderConfig
+        >>> from pipeline.trackers.dual import Decider, Evidence, Rule
+        >>> from pipeline.types import BBox
+        >>> at = lambda cx: BBox.from_center(cx, 100, 20, 50)
+        >>> ev = Evidence(measured_last=True, missing=0, prior=at(100), ref_size=(20, 50),
+        ...               colour_informative=True, rho_meanshift=0.9, meanshift_box=at(101),
+        ...               contour_box=at(100.5), contour_ok=True, contour_reason="ok",
+        ...               rho_contour=0.9, appearance_box=at(100.2), psr=15.0, rho_appearance=0.9)
+        >>> decider = Decider(DeciderConfig())
+        >>> d = decider.decide(ev)
+        >>> d.rule == Rule.CONTOUR_AND_APPEARANCE, d.text, d.stage
+        (True, 'contour:contour-and-appearance', 'levelset')
+        >>> import dataclasses
+        >>> d = decider.decide(dataclasses.replace(ev, contour_ok=False, contour_reason="leak"))
+        >>> d.text, d.box == at(100.2)
+        ('appearance:appearance-contour-leak', True)
+        """
+        v = View.of(ev, self.cfg)
+        for _, holds, make in TRACKED if ev.measured_last else MISSING:
+            if holds(v):
+                return make(v)
+        return coast(v)
+
+    def split_blob(self, box: BBox) -> Decision:
+        """A member of a group that split takes the blob it was re-associated with (``SPLIT_BLOB``)
+        when no cue measures it."""
+        return decision(
+            Case.CONTOUR,
+            Rule.SPLIT_BLOB,
+            box,
+            self.cfg.noise_scale_contour,
+            contour_scale=True,
+            stage="levelset",
         )
-    if (
-        contour_clean
-        and not cut
-        and near_prior(contour, ev, cfg)
-        and not confident_elsewhere(ev, cfg)
-    ):  # type: ignore[arg-type]
-        if (
-            not ev.colour_informative
-            or _good(ev.rho_contour, cfg.reacquire_rho)
-            or math.isnan(ev.rho_contour)
-        ):
-            return Decision(
-                Case.REACQUIRED,
-                contour,
-                1.0,
-                TargetStatus.TRACKING,
-                "contour-near-prediction",
-                True,
-                stage="levelset",
+
+    def walked_in(self, box: BBox) -> Decision:
+        """A target given cut by the frame's border takes its first clean contour once it has
+        walked in (``WALKED_IN``)."""
+        return decision(
+            Case.CONTOUR, Rule.WALKED_IN, box, self.cfg.noise_scale_contour, stage="levelset"
+        )
+
+    # -- readings the other parts use ------------------------------------------------------
+    def filter_confident(self, psr: float) -> bool:
+        """A filter detection of this PSR is confident (``psr_confident``)."""
+        return psr >= self.cfg.psr_confident
+
+    def colour_good(self, informative: bool, rho: float) -> bool:
+        """A colour match good enough to carry the target (``occlusion_rho``)."""
+        return informative and rho >= self.cfg.occlusion_rho
+
+    def colour_contradicts(self, rho: float) -> bool:
+        """A colour match that contradicts a measurement (under ``colour_min_rho``)."""
+        return not math.isnan(rho) and rho < self.cfg.colour_min_rho
+
+    def colour_moved(
+        self,
+        informative: bool,
+        rho: float,
+        found: tuple[float, float],
+        expected: tuple[float, float],
+        size: tuple[float, float],
+        psr: float,
+    ) -> bool:
+        """The colour found the target (a match of ``colour_min_rho``) away from where it was
+        expected (beyond ``agree_fraction`` of its size) while the filter is unsure there
+        (under ``psr_reacquire``): a turn, where the filter should look too."""
+        cfg = self.cfg
+        return (
+            informative
+            and rho >= cfg.colour_min_rho
+            and psr < cfg.psr_reacquire
+            and (
+                abs(found[0] - expected[0]) > cfg.agree_fraction * size[0]
+                or abs(found[1] - expected[1]) > cfg.agree_fraction * size[1]
             )
-    if (
-        ev.colour_informative
-        and ev.meanshift_box is not None
-        and _good(ev.rho_meanshift, cfg.reacquire_rho)
-        and near_prior(ev.meanshift_box, ev, cfg)
-        and (strong_colour or ev.contour_reason == ContourReason.LOW_CONTRAST)
-    ):
-        return Decision(
-            Case.REACQUIRED,
-            _resized(ev.meanshift_box, ev.ref_size),
-            2.0,
-            TargetStatus.TRACKING,
-            "colour-near-prediction",
-            stage="meanshift",
-        )
-    return _coast(ev, cfg, cut)
-
-
-def contour_agrees(contour: BBox, ev: Evidence, cfg: DualConfig) -> bool:
-    """The contour and the filter's detection agree: centres within ``agree_fraction`` of the size."""
-    assert ev.appearance_box is not None
-    return agree(contour, ev.appearance_box, ev.ref_size, cfg.agree_fraction)
-
-
-def within_reach(box: BBox, ev: Evidence, cfg: DualConfig) -> bool:
-    """Within ``jump_fraction`` of the target's size (on each axis) of its last box, or of its
-    prediction with ``jump_sigma`` standard deviations of the predicted centre added."""
-
-    def near(ref: BBox | None, sx: float = 0.0, sy: float = 0.0) -> bool:
-        return ref is not None and (
-            abs(box.cx - ref.cx) <= cfg.jump_fraction * ev.ref_size[0] + sx
-            and abs(box.cy - ref.cy) <= cfg.jump_fraction * ev.ref_size[1] + sy
         )
 
-    k = cfg.jump_sigma
-    return near(ev.prior, k * ev.prior_std_px[0], k * ev.prior_std_px[1]) or near(ev.last)
-
-
-def colour_elsewhere(box: BBox, rho_at: float, ev: Evidence, cfg: DualConfig) -> bool:
-    """The colour says the target is not at ``box``: the match there is under ``colour_min_rho``
-    and the mean shift, away from it, matches better by ``colour_veto_margin`` (and at least
-    ``colour_min_rho``)."""
-    return (
-        ev.colour_informative
-        and ev.meanshift_box is not None
-        and not math.isnan(rho_at)
-        and rho_at < cfg.colour_min_rho
-        and _good(ev.rho_meanshift, cfg.colour_min_rho)
-        and ev.rho_meanshift - rho_at >= cfg.colour_veto_margin
-        and not agree(box, ev.meanshift_box, ev.ref_size, cfg.agree_fraction)
-    )
-
-
-def confident_elsewhere(ev: Evidence, cfg: DualConfig) -> bool:
-    """A confident filter detection that is not where the contour is."""
-    return (
-        ev.appearance_box is not None
-        and cfg.appearance_cue
-        and _good(ev.psr, cfg.psr_confident)
-        and ev.contour_box is not None
-        and not agree(ev.contour_box, ev.appearance_box, ev.ref_size, cfg.agree_fraction)
-    )
-
-
-def _resized(box: BBox | None, size: tuple[float, float]) -> BBox | None:
-    return None if box is None else BBox.from_center(box.cx, box.cy, size[0], size[1])
-
-
-def _coast(ev: Evidence, cfg: DualConfig, cut: bool) -> Decision:
-    missing = ev.missing + 1
-    if ev.outside or missing > cfg.max_missing_frames:
-        why = "left-the-frame" if ev.outside else f"{missing}-frames-without-a-measurement"
-        return Decision(Case.LOST, None, 0.0, TargetStatus.LOST, why)
-    evidence = (
-        cut
-        or (ev.contour_box is not None and ev.contour_ok)
-        or (ev.colour_informative and _good(ev.rho_meanshift, cfg.colour_min_rho))
-        or (ev.appearance_box is not None and _good(ev.psr, 0.5 * cfg.psr_confident))
-    )
-    status = TargetStatus.OCCLUDED_PARTIAL if evidence else TargetStatus.OCCLUDED_SEVERE
-    return Decision(
-        Case.COAST, None, 0.0, status, "partial-evidence" if evidence else "no-evidence"
-    )
+    def takes_back(
+        self,
+        psr: float,
+        center: tuple[float, float],
+        predicted: tuple[float, float],
+        ref_size: tuple[float, float],
+        missing: int,
+    ) -> bool:
+        """A filter detection that rule 7 takes a missing target back with: at
+        ``psr_reacquire``, near the prediction."""
+        return psr >= self.cfg.psr_reacquire and near_prediction(
+            center, predicted, ref_size, missing, self.cfg
+        )

@@ -1,4 +1,5 @@
-"""One target, one frame: cues, the decision, the updates, the events and the reported result."""
+"""One target that is not merged, one frame: its cues, the decision over them (:func:`measure`),
+then its size, models, motion, events and result (:func:`update`)."""
 
 from __future__ import annotations
 
@@ -6,37 +7,23 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
-from pipeline.stages import appearance as app
-from pipeline.stages.contour import ContourReason, ContourResult, extract_contour
-from pipeline.stages.extent import colour_extent, search_window
-from pipeline.tracker_config import DualConfig
-from pipeline.trackers.dual.cues import (
-    AppearanceCue,
-    ColourStep,
-    add_time,
-    appearance_cue,
-    filter_images,
-    match_at,
-)
-from pipeline.trackers.dual.decide import Case, Decision, Evidence, decide
-from pipeline.trackers.dual.update import (
-    fused_size,
-    motion_update,
-    update_appearance,
-    update_colour_model,
-)
-from pipeline.types import BBox, Event, EventKind, TargetResult, TargetStatus
+from pipeline.stages.appearance import AppearanceModel, Detection
+from pipeline.stages.contour import ContourResult, LevelSetMemory
+from pipeline.stages.model_update import UpdateDecision
+from pipeline.trackers.dual.appearance import FilterCue
+from pipeline.trackers.dual.colour import ColourStep, add_time
+from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule
+from pipeline.trackers.dual.state import BackgroundSource, DualTarget
+from pipeline.types import BBox, Event, EventKind, TargetResult
 
-CONFIDENCE = {
-    TargetStatus.TRACKING: 1.0,
-    TargetStatus.OCCLUDED_PARTIAL: 0.6,
-    TargetStatus.OCCLUDED_SEVERE: 0.3,
-}
+if TYPE_CHECKING:
+    from pipeline.trackers.dual.tracker import Dual
+
+Size = tuple[float, float]
+NAN = math.nan
 
 
 def outside(box: BBox, shape: tuple[int, ...]) -> bool:
@@ -44,77 +31,12 @@ def outside(box: BBox, shape: tuple[int, ...]) -> bool:
     return box.clip(shape[1], shape[0]).area < 0.25 * box.area
 
 
-def walked_in_size(
-    size: tuple[float, float],
-    c: ContourResult | None,
-    rho_c: float,
-    entering: tuple[bool, bool],
-    dcfg: DualConfig,
-) -> tuple[float, float] | None:
-    """The size of a target first given cut by the frame's border, once it has walked in: its first
-    clean contour (no longer at the border, its colour not contradicting it) is larger than the
-    given box by more than ``scale_agree_ratio`` along a cut axis. None otherwise (also when the
-    target was not cut after all)."""
-    if (
-        c is None
-        or c.box is None
-        or not c.ok
-        or (not math.isnan(rho_c) and rho_c < dcfg.colour_min_rho)
-    ):
-        return None
-    grown = [
-        entering[k] and (c.box.w, c.box.h)[k] > dcfg.scale_agree_ratio * size[k] for k in (0, 1)
-    ]
-    if not any(grown):
-        return None
-    return (c.box.w if grown[0] else size[0], c.box.h if grown[1] else size[1])
-
-
-def measured_extent(
-    cs: ColourStep, decision: Decision, cfg: PipelineConfig, neighbours: tuple[BBox, ...] = ()
-) -> BBox | None:
-    """The target's colour extent (frame px) around the measured position at its current size, when
-    the colour is informative, the decision let the models learn (a hidden target's colours are
-    someone else's) and no other target (``neighbours``, their boxes this frame) lies within the
-    extent's window."""
-    if not (
-        decision.measured
-        and decision.learn
-        and cs.informative
-        and cs.bins is not None
-        and decision.box is not None
-    ):
-        return None
-    here = BBox.from_center(decision.box.cx, decision.box.cy, cs.t.size[0], cs.t.size[1])
-    win = search_window(here, cfg.extent)
-    if any(win.iou(b) > 0 for b in neighbours):
-        return None
-    x0, y0 = cs.roi0
-    around = BBox(here.x - x0, here.y - y0, here.w, here.h)
-    e = colour_extent(cs.bins, cs.t.q, around, cfg.extent)
-    return None if e is None else BBox(e.x + x0, e.y + y0, e.w, e.h)
-
-
-def contour_start(cs: ColourStep, cue, dcfg: DualConfig) -> tuple[float, float]:
-    """Where the level set starts: the filter's detection when it is confident, the mean shift when
-    its colour match is good (or the paper's way, without the channel weighting or the motion
-    prior), else the prediction."""
-    if cue is not None and cue.psr >= dcfg.psr_confident:
-        return cue.box.center
-    if (cs.informative and cs.rho1 >= dcfg.occlusion_rho) or not (
-        dcfg.channel_weighting and dcfg.motion_prior
-    ):
-        return cs.y1
-    return cs.y0
-
-
 @dataclass(frozen=True)
 class Measured:
-    """One target's cues and decision in one frame, before anything is updated
-    (:func:`measure_single`)."""
+    """One target's cues and decision in one frame, before anything is updated."""
 
     cs: ColourStep
-    cue: AppearanceCue | None
+    cue: FilterCue | None
     contour: ContourResult | None
     rho_contour: float
     rho_appearance: float
@@ -123,232 +45,191 @@ class Measured:
     start: tuple[float, float] | None = None
 
 
-def measure_single(
+# ------------------------------------------------------------------------------- measure
+
+
+def measure(
+    dual: Dual,
     frames: FramePair,
     cs: ColourStep,
-    cfg: PipelineConfig,
     mode: str,
     timing: dict[str, float],
     start: tuple[float, float] | None = None,
-    background=None,
+    background: BackgroundSource = None,
 ) -> Measured:
-    """The cues of one target that is not merged (filter, IR contour, colour at each) and the
-    decision over them.
+    """The cues of one target (filter, IR contour, colour at each) and the decision over them.
 
     ``start`` forces a cold contour start there (a blob after a split); ``background`` is the
-    detector's, for the whole-frame search of a missing target
-    (:func:`pipeline.trackers.dual.cues.frame_candidates`)."""
-    dcfg: DualConfig = cfg.dual
-    t, prior = cs.t, cs.prior
-    ir = frames.infrared if mode in ("dual", "ir") else None
-    H, W = frames.shape
-    cue = appearance_cue(frames, cs, cfg, mode, timing, frames.index, background)
+    detector's, for the whole-frame search."""
+    cue = _filter(dual, frames, cs, mode, timing, background)
+    c = _contour(dual, frames, cs, cue, mode, timing, start)
+    usable = c if dual.contour.usable(c) else None
+    rho_c = dual.colour.match_at(cs, usable.box if usable is not None else None)
+    rho_a = dual.colour.match_at(cs, cue.box if cue is not None else None)
+    ev = evidence(dual, frames, cs, cue, usable, c, (rho_c, rho_a), mode, start)
+    d = dual.lifecycle.settle(dual.decider.decide(ev), ev)
+    if start is not None and not d.measured and c is not None and c.box is not None:
+        d = dual.decider.split_blob(c.box)  # the blob a split re-associated it with
+    return Measured(cs, cue, c, rho_c, rho_a, ev, d, start)
+
+
+def _filter(
+    dual: Dual,
+    frames: FramePair,
+    cs: ColourStep,
+    mode: str,
+    timing: dict[str, float],
+    background: BackgroundSource,
+) -> FilterCue | None:
+    """The filter's detection at the prediction (and at the colour's position when that is
+    elsewhere: a turn); a missing target is also looked for by the re-detector."""
+    t, a = cs.t, dual.appearance
+    if a is None or t.appearance is None:
+        return None
     clock = time.perf_counter()
+    size, with_scale = t.app_size, a.with_scale(frames.index)
+    best = a.detect(t.appearance, frames, mode, cs.y0, size, with_scale)
+    if dual.decider.colour_moved(cs.informative, cs.rho1, cs.y1, cs.y0, size, best.psr):
+        d = a.detect(t.appearance, frames, mode, cs.y1, size, with_scale)
+        if d.psr > best.psr:
+            best = d
+    best, redetected = _redetect(dual, frames, cs, mode, best, background)
+    add_time(timing, "appearance", clock)
+    return a.cue(best, frames, redetected)
 
-    # the IR contour, started where the other cues put the target
-    c: ContourResult | None = None
-    if ir is not None:
-        yc, memory = (
-            (start, None) if start is not None else (contour_start(cs, cue, dcfg), t.memory)
-        )
-        expected = BBox.from_center(yc[0], yc[1], t.size[0], t.size[1])
-        shift = (yc[0] - t.memory_center[0], yc[1] - t.memory_center[1])
-        c = extract_contour(ir, expected, cfg.contour, cfg.levelset, memory, shift)
-        add_time(timing, "levelset", clock)
-    contour_usable = (
-        c is not None
-        and c.box is not None
-        and (
-            c.ok
-            or not dcfg.contour_checks
-            or (not dcfg.channel_weighting and c.reason == ContourReason.LOW_CONTRAST)
-        )
-    )
-    mmf = cfg.meanshift.min_mass_fraction
-    rho_c = (
-        match_at(cs.bins, t.q, c.box, cs.roi0, mmf)
-        if (
-            contour_usable
-            and cs.informative
-            and cs.bins is not None
-            and c is not None
-            and c.box is not None
-        )
-        else float("nan")
-    )
 
-    rho_a = (
-        match_at(cs.bins, t.q, cue.box, cs.roi0, mmf)
-        if (cue is not None and cs.informative and cs.bins is not None)
-        else float("nan")
-    )
+def _redetect(
+    dual: Dual,
+    frames: FramePair,
+    cs: ColourStep,
+    mode: str,
+    best: Detection,
+    background: BackgroundSource,
+) -> tuple[Detection, bool]:
+    """A missing target is searched for at the re-detector's candidates, unless the filter
+    finds it where rule 7 takes it back (a confident peak elsewhere in the window, on something
+    the filter learned while the target was hidden, does not stop the search). Returns the best
+    detection and whether the search found it."""
+    t, a = cs.t, dual.appearance
+    if t.missing == 0 or dual.redetector is None or a is None or t.appearance is None:
+        return best, False
+    predicted = (float(cs.prior.x[0]), float(cs.prior.x[1]))
+    if dual.decider.takes_back(best.psr, best.center, predicted, t.reference_size, t.missing):
+        return best, False
+    size, redetected = t.app_size, False
+    for c in dual.redetector.candidates(frames, cs, size, background):
+        d = a.detect(t.appearance, frames, mode, c, size, with_scale=False)
+        if d.psr > best.psr:
+            best, redetected = d, True
+    if redetected:  # the size at the place found
+        best = a.detect(t.appearance, frames, mode, best.center, size)
+    return best, redetected
+
+
+def _contour(
+    dual: Dual,
+    frames: FramePair,
+    cs: ColourStep,
+    cue: FilterCue | None,
+    mode: str,
+    timing: dict[str, float],
+    start: tuple[float, float] | None,
+) -> ContourResult | None:
+    """The IR contour, started where the other cues put the target (or at ``start``, cold)."""
+    if mode not in ("dual", "ir") or frames.infrared is None:
+        return None
+    clock = time.perf_counter()
+    cold = start is not None
+    if start is None:
+        confident = cue is not None and dual.decider.filter_confident(cue.psr)
+        start = dual.contour.start(
+            cue.box if confident and cue is not None else None,
+            cs.y1,
+            cs.y0,
+            dual.decider.colour_good(cs.informative, cs.rho1),
+        )
+    c = dual.contour.extract(frames.infrared, cs.t, start, cold)
+    add_time(timing, "levelset", clock)
+    return c
+
+
+def evidence(
+    dual: Dual,
+    frames: FramePair,
+    cs: ColourStep,
+    cue: FilterCue | None,
+    usable: ContourResult | None,
+    c: ContourResult | None,
+    rhos: tuple[float, float],
+    mode: str,
+    start: tuple[float, float] | None,
+) -> Evidence:
+    """What the cues found, for the decider: ``usable`` is the contour where the contour cue
+    lets it measure, ``rhos`` the colour matches at the contour and at the filter's box."""
+    t, prior = cs.t, cs.prior
     ref = t.reference_size
-    ev = Evidence(
+    colour_seen = not math.isnan(cs.rho1)
+    return Evidence(
         measured_last=t.missing == 0 or start is not None,
         missing=t.missing,
         prior=BBox.from_center(float(prior.x[0]), float(prior.x[1]), ref[0], ref[1]),
         ref_size=ref,
-        colour_informative=(cs.informative and mode != "ir")
-        or (mode == "ir" and not math.isnan(cs.rho1)),
+        colour_informative=(cs.informative and mode != "ir") or (mode == "ir" and colour_seen),
         rho_meanshift=cs.rho1,
-        meanshift_box=cs.box1 if not math.isnan(cs.rho1) else None,
-        contour_box=c.box if contour_usable and c is not None else None,
-        contour_ok=bool(c is not None and c.ok),
+        meanshift_box=cs.box1 if colour_seen else None,
+        contour_box=usable.box if usable is not None else None,
+        contour_ok=c is not None and c.ok,
         contour_reason=c.reason if c is not None else "no-contour",
-        rho_contour=rho_c,
-        appearance_box=cue.box if cue is not None else None,
-        psr=cue.psr if cue is not None else float("nan"),
-        rho_appearance=rho_a,
+        rho_contour=rhos[0],
+        rho_appearance=rhos[1],
         last=t.box,
-        support=cue.support if cue is not None else (math.nan, math.nan),
-        redetected=bool(cue is not None and cue.redetected),
-        outside=outside(prior.box, (H, W)),
+        outside=outside(prior.box, frames.shape),
         prior_std_px=(math.sqrt(float(prior.P[0, 0])), math.sqrt(float(prior.P[1, 1]))),
+        contour_checked=dual.contour.cfg.checks,
+        **_filter_evidence(cue),
     )
-    decision: Decision = decide(ev, dcfg)
-    if start is not None and not decision.measured and c is not None and c.box is not None:
-        # the blob a split re-associated this target with is its measurement
-        decision = Decision(
-            Case.CONTOUR, c.box, 1.0, TargetStatus.TRACKING, "split-blob", True, False, "levelset"
-        )
-    return Measured(cs, cue, c, rho_c, rho_a, ev, decision, start)
 
 
-def finish_single(
-    frames: FramePair,
-    cs: ColourStep,
-    cfg: PipelineConfig,
-    mode: str,
-    timing: dict[str, float],
-    start: tuple[float, float] | None = None,
-    events_in: list[Event] | None = None,
-    neighbours: tuple[BBox, ...] = (),
-    background=None,
-):
-    """:func:`measure_single` and :func:`update_single` of one target that is not merged: (new
-    state, result, events)."""
-    m = measure_single(frames, cs, cfg, mode, timing, start, background)
-    return update_single(frames, m, cfg, mode, timing, events_in, neighbours)
+def _filter_evidence(cue: FilterCue | None) -> dict:
+    """The filter's fields of the evidence (absent: no box, NaN PSR)."""
+    if cue is None:
+        return {"appearance_box": None, "psr": NAN, "support": (NAN, NAN), "redetected": False}
+    return {
+        "appearance_box": cue.box,
+        "psr": cue.psr,
+        "support": cue.support,
+        "redetected": cue.redetected,
+    }
 
 
-def update_single(
+# -------------------------------------------------------------------------------- update
+
+
+def update(
+    dual: Dual,
     frames: FramePair,
     m: Measured,
-    cfg: PipelineConfig,
     mode: str,
     timing: dict[str, float],
     events_in: list[Event] | None = None,
     neighbours: tuple[BBox, ...] = (),
-):
-    """Size, models, motion, events and the reported result of one target after its decision: (new
-    state, result, events). ``neighbours`` are the other targets' boxes this frame (the colour
-    extent is not measured where one is near)."""
-    dcfg: DualConfig = cfg.dual
-    cs, cue, c, decision, start = m.cs, m.cue, m.contour, m.decision, m.start
-    rho_c, rho_a = m.rho_contour, m.rho_appearance
-    t, prior = cs.t, cs.prior
-    ref = t.reference_size
+) -> tuple[DualTarget, TargetResult, list[Event]]:
+    """Size, models, motion, events and the reported result of one target after its decision:
+    (new state, result, events). ``neighbours`` are the other targets' boxes this frame (the
+    colour extent is not measured where one is near)."""
+    cs, c = m.cs, m.contour
+    t = cs.t
     clock = time.perf_counter()
-
-    # size, output box, models
-    extent = measured_extent(cs, decision, cfg, neighbours) if dcfg.extent_cue else None
-    size, app_size = fused_size(
-        t.size,
-        t.app_size,
-        decision,
-        c,
-        cue,
-        dcfg,
-        cfg.contour.min_contrast,
-        extent,
-        cfg.extent.max_ratio if dcfg.extent_cue else 1.0,
-    )
-    entering = t.entering
-    walked_in = walked_in_size(size, c, rho_c, entering, dcfg) if any(entering) else None
-    if walked_in is not None:  # its first clean contour shows what the frame's border hid
-        size, decision = (
-            walked_in,
-            Decision(
-                Case.CONTOUR,
-                c.box,
-                1.0,
-                TargetStatus.TRACKING,
-                "walked-in",  # type: ignore[union-attr]
-                False,
-                False,
-                "levelset",
-            ),
-        )
-    if any(entering) and c is not None and c.ok:
-        entering = (False, False)
-    if decision.measured:
-        assert decision.box is not None
-        out = BBox.from_center(decision.box.cx, decision.box.cy, size[0], size[1])
-        missing_n = 0
-    else:
-        out = BBox.from_center(float(prior.x[0]), float(prior.x[1]), ref[0], ref[1])
-        missing_n = t.missing + 1
-    q, colour_decision, rho2 = update_colour_model(
-        t.q, cs.bins, cs.roi0, out, decision.learn, decision.measured, cfg
-    )
-    vis, irf = filter_images(frames, mode)
-    model = t.appearance
-    if walked_in is not None:  # the filter learns the whole target afresh
-        app_size = size
-        if model is not None:
-            model = app.train(vis, irf, out, cfg.appearance)
-    else:
-        model = update_appearance(
-            model,
-            vis,
-            irf,
-            BBox.from_center(out.cx, out.cy, *app_size),
-            decision,
-            colour_decision,
-            cs.informative,
-            cfg.appearance,
-            frames.index,
-        )
-    events: list[Event] = list(events_in or [])
-    if (
-        not colour_decision.update
-        and t.last_update.startswith("updated")
-        and colour_decision.reason != "colour-uninformative"
-    ):
-        events.append(
-            Event(
-                EventKind.MODEL_FROZEN, f"T{t.id} model frozen ({colour_decision.reason})", (t.id,)
-            )
-        )
+    size, app_size, d, entering = _size(dual, m, neighbours)
+    out = _output_box(cs, d, size)
+    q, colour, rho2 = dual.colour.learn(cs, out, d.learn, d.measured)
+    model, app_size = _learn_filter(dual, frames, m, mode, d, out, (size, app_size), colour)
+    events = [*(events_in or []), *_frozen(t, colour)]
     clock = add_time(timing, "model_update", clock)
-    kf, history, out = motion_update(cs, decision, out, frames.index, dcfg, cfg.kalman, t.history)
+    kf, history, out = dual.motion.update(t, cs.prior, d, out, frames.index)
     add_time(timing, "kalman", clock)
-
-    status = decision.status
-    if status != t.status:
-        if status == TargetStatus.LOST:
-            events.append(
-                Event(EventKind.LOST, f"T{t.id} lost ({decision.why.replace('-', ' ')})", (t.id,))
-            )
-        elif t.status == TargetStatus.LOST:
-            events.append(
-                Event(EventKind.REACQUIRED, f"T{t.id} re-acquired ({decision.why})", (t.id,))
-            )
-        elif status.is_occluded and not t.status.is_occluded:
-            events.append(
-                Event(
-                    EventKind.OCCLUSION_START,
-                    f"T{t.id} {status} ({decision.why}, contour "
-                    f"{c.reason if c is not None else 'none'})",
-                    (t.id,),
-                )
-            )
-        elif not status.is_occluded and t.status.is_occluded:
-            events.append(
-                Event(EventKind.OCCLUSION_END, f"T{t.id} visible again ({decision.why})", (t.id,))
-            )
-
-    good_contour = decision.case == Case.CONTOUR and c is not None and c.box is not None
+    events += dual.lifecycle.events(t.id, t.status, d, c.reason if c is not None else None)
+    memory, memory_center = _contour_memory(t, d, c)
     nt = dataclasses.replace(
         t,
         box=out,
@@ -356,48 +237,189 @@ def update_single(
         app_size=app_size,
         entering=entering,
         q=q,
-        status=status,
+        status=d.status,
         kf=kf,
-        memory=c.memory if good_contour and c is not None else t.memory,
-        memory_center=c.box.center
-        if good_contour and c is not None and c.box is not None
-        else t.memory_center,
+        memory=memory,
+        memory_center=memory_center,
         history=history,
-        missing=missing_n,
-        last_update=str(colour_decision),
-        split_frame=frames.index if start is not None else t.split_frame,
+        missing=0 if d.measured else t.missing + 1,
+        last_update=str(colour),
+        split_frame=frames.index if m.start is not None else t.split_frame,
         appearance=model,
-        case=decision.case.value,
+        case=d.case.value,
     )
+    return nt, result(dual, m, d, out, nt.missing, colour, rho2), events
+
+
+def _output_box(cs: ColourStep, d: Decision, size: Size) -> BBox:
+    """The reported box: the measurement at the new size, or the prediction at the usual
+    size."""
+    if d.box is not None:
+        return BBox.from_center(d.box.cx, d.box.cy, size[0], size[1])
+    ref = cs.t.reference_size
+    return BBox.from_center(float(cs.prior.x[0]), float(cs.prior.x[1]), ref[0], ref[1])
+
+
+def _size(
+    dual: Dual, m: Measured, neighbours: tuple[BBox, ...]
+) -> tuple[Size, Size, Decision, tuple[bool, bool]]:
+    """The size after this frame, the filter's own size, the decision (a target that walked in
+    takes its first clean contour) and the axes along which it is still walking in."""
+    t, d = m.cs.t, m.decision
+    confident = m.cue is not None and dual.decider.filter_confident(m.cue.psr)
+    ratio = dual.extent.cfg.max_ratio if dual.extent is not None else 1.0
+    size, app_size = dual.size.update(
+        t.size,
+        t.app_size,
+        d,
+        _contour_size(dual, d, m.contour),
+        m.cue,
+        confident,
+        _extent(dual, m, neighbours),
+        ratio,
+    )
+    size, d, entering = _walked_in(dual, m, size, d)
+    return size, app_size, d, entering
+
+
+def _extent(dual: Dual, m: Measured, neighbours: tuple[BBox, ...]) -> BBox | None:
+    """The colour extent at the measurement, when the decision lets the models learn (a hidden
+    target's colours are someone else's) and the colour is seen."""
+    d = m.decision
+    if dual.extent is None or d.box is None or not d.learn or not m.cs.informative:
+        return None
+    return dual.extent.measure(m.cs, d.box.center, neighbours)
+
+
+def _contour_size(dual: Dual, d: Decision, c: ContourResult | None) -> Size | None:
+    """The contour's box size, where the decision lets it enter the size and it is clearly
+    contrasted."""
+    if not d.contour_scale or c is None or c.box is None:
+        return None
+    if not dual.contour.contrasted(c, dual.size.cfg.contour_contrast_ratio):
+        return None
+    return (c.box.w, c.box.h)
+
+
+def _walked_in(
+    dual: Dual, m: Measured, size: Size, d: Decision
+) -> tuple[Size, Decision, tuple[bool, bool]]:
+    """A target given cut by the frame's border takes the size of its first clean contour once
+    it has walked in (``WALKED_IN``); it walks in no more once its contour is clean."""
+    c, entering = m.contour, m.cs.t.entering
+    if not any(entering):
+        return size, d, entering
+    contradicts = dual.decider.colour_contradicts(m.rho_contour)
+    walked = dual.size.walked_in(size, c, contradicts, entering)
+    if walked is not None and c is not None and c.box is not None:
+        # its first clean contour shows what the frame's border hid
+        size, d = walked, dual.decider.walked_in(c.box)
+    if c is not None and c.ok:
+        entering = (False, False)
+    return size, d, entering
+
+
+def _learn_filter(
+    dual: Dual,
+    frames: FramePair,
+    m: Measured,
+    mode: str,
+    d: Decision,
+    out: BBox,
+    sizes: tuple[Size, Size],
+    colour: UpdateDecision,
+) -> tuple[AppearanceModel | None, Size]:
+    """The filter and its size after this frame (``sizes``: the size and the filter's own):
+    learned afresh on a target that walked in (at its whole size), else blended with this frame
+    when the decision and the colour model allow."""
+    size, app_size = sizes
+    walked = d.rule == Rule.WALKED_IN
+    model = m.cs.t.appearance
+    if walked:
+        app_size = size
+    if dual.appearance is None or model is None:
+        return model, app_size
+    if walked:
+        return dual.appearance.train(frames, mode, out), app_size
+    at = BBox.from_center(out.cx, out.cy, *app_size)
+    seen = m.cs.informative
+    return dual.appearance.learn(model, frames, mode, at, d, colour, seen, frames.index), app_size
+
+
+def _frozen(t: DualTarget, colour: UpdateDecision) -> list[Event]:
+    """The event of the colour model freezing after it was updating."""
+    if colour.update or not t.last_update.startswith("updated"):
+        return []
+    if colour.reason == "colour-uninformative":
+        return []
+    return [Event(EventKind.MODEL_FROZEN, f"T{t.id} model frozen ({colour.reason})", (t.id,))]
+
+
+def _contour_memory(
+    t: DualTarget, d: Decision, c: ContourResult | None
+) -> tuple[LevelSetMemory | None, tuple[float, float]]:
+    """The level set kept for the next warm start: this frame's when the contour measured the
+    target, else the last good one."""
+    if d.case == Case.CONTOUR and c is not None and c.box is not None:
+        return c.memory, c.box.center
+    return t.memory, t.memory_center
+
+
+def result(
+    dual: Dual,
+    m: Measured,
+    d: Decision,
+    out: BBox,
+    missing: int,
+    colour: UpdateDecision,
+    rho2: float,
+) -> TargetResult:
+    """What ``targets.csv`` and the recording show of one target this frame."""
+    cs, cue, c = m.cs, m.cue, m.contour
+    overlays = {"prediction": cs.prior.box, "meanshift": cs.box1}
+    if cue is not None:
+        overlays["appearance"] = cue.box
+    contour_note = "" if c is None or c.ok else f";contour-{c.reason}"
+    shown = c is not None and c.box is not None
+    return TargetResult(
+        cs.t.id,
+        out,
+        d.status,
+        d.stage,
+        {"meanshift": cs.ms_iters, "levelset": c.iterations if c is not None else 0},
+        rho2 if not math.isnan(rho2) else cs.rho1,
+        f"{colour}{contour_note}",
+        dual.lifecycle.confidence(d.status),
+        c.contour if shown and c is not None else (),
+        diagnostics(m, missing, rho2),
+        overlays,
+        decision=d.text,
+    )
+
+
+def diagnostics(m: Measured, missing: int, rho2: float) -> dict[str, float]:
+    """A target's ``targets.csv`` diagnostics (NaN for a cue that did not run)."""
+    cs, cue, c = m.cs, m.cue, m.contour
     diag = {
         "rho_y1": cs.rho1,
         "rho_y2": rho2,
-        "rho_contour": rho_c,
-        "contrast": c.contrast if c is not None else math.nan,
+        "rho_contour": m.rho_contour,
+        "contrast": c.contrast if c is not None else NAN,
         "bright_fraction": cs.bright,
-        "missing": float(missing_n),
-        "components": float(len(c.components)) if c else 0.0,
-        "psr": cue.psr if cue is not None else math.nan,
-        "scale_factor": cue.scale_factor if cue is not None else math.nan,
-        "psr_visible": cue.support[0] if cue is not None else math.nan,
-        "psr_ir": cue.support[1] if cue is not None else math.nan,
-        "rho_appearance": rho_a,
+        "missing": float(missing),
+        "components": float(len(c.components)) if c is not None else 0.0,
     }
-    overlays = {"prediction": prior.box, "meanshift": cs.box1}
-    if cue is not None:
-        overlays["appearance"] = cue.box
-    res = TargetResult(
-        t.id,
-        out,
-        status,
-        decision.stage,
-        {"meanshift": cs.ms_iters, "levelset": c.iterations if c else 0},
-        rho2 if not np.isnan(rho2) else cs.rho1,
-        f"{colour_decision}" + ("" if c is None or c.ok else f";contour-{c.reason}"),
-        CONFIDENCE.get(status, 0.0),
-        c.contour if c is not None and c.box is not None else (),
-        diag,
-        overlays,
-        decision=f"{decision.case.value}:{decision.why}",
-    )
-    return nt, res, events
+    diag.update(_filter_diagnostics(cue))
+    diag["rho_appearance"] = m.rho_appearance
+    return diag
+
+
+def _filter_diagnostics(cue: FilterCue | None) -> dict[str, float]:
+    if cue is None:
+        return {"psr": NAN, "scale_factor": NAN, "psr_visible": NAN, "psr_ir": NAN}
+    return {
+        "psr": cue.psr,
+        "scale_factor": cue.scale_factor,
+        "psr_visible": cue.support[0],
+        "psr_ir": cue.support[1],
+    }

@@ -14,6 +14,13 @@ from pipeline.stages.contour import LevelSetMemory
 from pipeline.stages.detection import Background
 from pipeline.types import BBox, TargetStatus
 
+History = tuple[tuple[float, float, float, float, float], ...]
+"""Recent clean measurements ``(frame, cx, cy, w, h)``, oldest first."""
+
+BackgroundSource = Background | Callable[[], Background | None] | None
+"""The detector's background of a frame: the sequence's, a function of no arguments returning
+it (read only when the whole-frame search runs), or None (each frame's own)."""
+
 
 @dataclass(frozen=True)
 class DualTarget:
@@ -25,8 +32,10 @@ class DualTarget:
     leaking or partial contour is measured against it); ``memory`` the last good level set and
     ``memory_center`` the target centre it was made at; ``entering`` the axes along which the
     first box was cut by the frame's border (the target walks in, and its size on that axis is
-    what its clean contour says once it is inside);
-    ``history`` the recent clean measurements ``(frame, cx, cy, w, h)``.
+    what its clean contour says once it is inside); ``history`` the recent clean
+    measurements; ``last_update`` the colour model's last update decision; ``split_frame``
+    the frame of its last split from a group (re-merge hysteresis); ``case`` its last
+    decision's case.
     """
 
     id: int
@@ -37,19 +46,13 @@ class DualTarget:
     kf: kalman.GaussianState
     memory: LevelSetMemory | None = None
     memory_center: tuple[float, float] = (0.0, 0.0)
-    history: tuple[tuple[float, float, float, float, float], ...] = ()
+    history: History = ()
     missing: int = 0
     last_update: str = "none"
-    split_frame: int = -1_000_000  # frame of the last split from a merge (re-merge hysteresis)
+    split_frame: int = -1_000_000
     appearance: AppearanceModel | None = None
-    app_size: tuple[float, float] = (
-        0.0,
-        0.0,
-    )  # the filter's own size estimate (its scale filter's track)
-    entering: tuple[bool, bool] = (
-        False,
-        False,
-    )  # given cut by the frame's border along x / y: walking in
+    app_size: tuple[float, float] = (0.0, 0.0)
+    entering: tuple[bool, bool] = (False, False)
     case: str = "init"
 
     @property
@@ -69,7 +72,8 @@ class DualTarget:
 
 @dataclass(frozen=True)
 class GroupMemory:
-    """The level set of a merged group, kept for the next frame's warm start."""
+    """The level set of a merged group, kept for the next frame's warm start, and its
+    foreground member."""
 
     members: tuple[int, ...]
     memory: LevelSetMemory
@@ -80,10 +84,9 @@ class GroupMemory:
 @dataclass(frozen=True)
 class DualState:
     """Every target, the mode (``dual``: both channels, ``ir`` or ``visible``: one), the merged
-    groups and the detector's background of the frame (a sequence's, :mod:`pipeline.io.background`,
-    or a function of no arguments returning it; None: each frame's own)."""
+    groups and the detector's background of the frame (:data:`BackgroundSource`)."""
 
     targets: tuple[DualTarget, ...]
     mode: str
     groups: tuple[GroupMemory, ...] = ()
-    background: Background | Callable[[], Background | None] | None = None
+    background: BackgroundSource = None

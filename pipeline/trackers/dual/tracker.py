@@ -1,26 +1,45 @@
-"""The dual tracker's frame loop: every target's cues, the merge test, and the group or single
-finish."""
+"""The dual tracker as a composition of parts, and its frame: every target's cues, the merge
+test, then each group and each single target."""
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
 
-from pipeline.config import PipelineConfig
 from pipeline.io.sequence import FramePair
-from pipeline.stages import appearance as app
-from pipeline.stages import kalman
-from pipeline.stages.contour import extract_contour
-from pipeline.stages.detection import Background
-from pipeline.stages.histogram import appearance_bins, kernel_histogram
-from pipeline.stages.merge import merge_groups
+from pipeline.stages import appearance as app_stage
+from pipeline.stages import contour as contour_stage
+from pipeline.stages import histogram as histogram_stage
+from pipeline.stages.contour import ContourResult
+from pipeline.stages.detection import DetectionConfig
+from pipeline.stages.model_update import UpdateDecision
 from pipeline.tracker_config import DualConfig
-from pipeline.trackers.dual.cues import colour_image, colour_stage, filter_images
-from pipeline.trackers.dual.group import finish_group
-from pipeline.trackers.dual.single import finish_single
-from pipeline.trackers.dual.state import DualState, DualTarget
-from pipeline.types import Event, EventKind, FrameResult, InitTarget, TargetResult, TargetStatus
+from pipeline.trackers.dual import single
+from pipeline.trackers.dual.appearance import AppearanceCue
+from pipeline.trackers.dual.colour import ColourCue, ColourStep, add_time
+from pipeline.trackers.dual.contour import ContourCue
+from pipeline.trackers.dual.decide import Case, Decider, Rule
+from pipeline.trackers.dual.group import GroupBlob, GroupHandler, Roles, live_boxes
+from pipeline.trackers.dual.lifecycle import Lifecycle
+from pipeline.trackers.dual.motion import Motion
+from pipeline.trackers.dual.redetect import Redetector
+from pipeline.trackers.dual.size import ExtentCue, SizeModel
+from pipeline.trackers.dual.state import BackgroundSource, DualState, DualTarget, GroupMemory
+from pipeline.types import (
+    BBox,
+    Event,
+    EventKind,
+    FrameResult,
+    InitTarget,
+    TargetResult,
+    TargetStatus,
+)
+
+Done = tuple[DualTarget, TargetResult, list[Event]]
+"""A target's new state, its result and its events this frame."""
 
 
 def mode_of(frames: FramePair) -> str:
@@ -31,128 +50,326 @@ def mode_of(frames: FramePair) -> str:
     return "ir" if frames.infrared is not None else "visible"
 
 
-def init(
-    frames: FramePair,
-    targets: Sequence[InitTarget],
-    cfg: PipelineConfig,
-    background: Background | Callable[[], Background | None] | None = None,
-) -> tuple[DualState, FrameResult]:
-    """Start on the first frame: the colour histogram, the correlation filter and the level set of
-    every target; ``background`` is the detector's for this frame (:attr:`DualState.background`).
+@dataclass(frozen=True)
+class Dual:
+    """The dual-channel tracker, composed of its parts (each with its own config section).
+
+    A part left out (None) is absent from every frame: without ``appearance`` no filter
+    detection enters the decision, without ``extent`` the size follows the filter and the
+    contour only, without ``redetector`` a missing target is looked for near its prediction
+    only, without ``groups`` targets in mutual occlusion each keep themselves. The tracker is
+    pure: :meth:`init` and :meth:`step` return a new :class:`DualState`.
+
+    Parameters
+    ----------
+    motion : Motion
+        The Kalman prior of every search, and coasting.
+    colour : ColourCue
+        Mean shift on the colour histogram (the paper's step 2) and its model update.
+    contour : ContourCue
+        The IR level-set contour (step 3) and its checks.
+    decider : Decider
+        The rule table that picks the measurement.
+    size : SizeModel
+        Eq. 7 over the cues' sizes.
+    lifecycle : Lifecycle
+        Lost targets, status events, confidences.
+    appearance : AppearanceCue, optional
+        The correlation filter over both channels.
+    extent : ExtentCue, optional
+        The box's width and height from the target's colours.
+    redetector : Redetector, optional
+        The search for a missing target.
+    groups : GroupHandler, optional
+        Eq. 10-11: merged groups, the split and re-association.
+
+    Examples
+    --------
+    >>> from pipeline.trackers.dual import Dual
+    >>> default, paper = Dual.from_config(DualConfig()), Dual.paper()
+    >>> default.appearance is not None, default.groups is None
+    (True, True)
+    >>> paper.appearance is None, paper.groups is not None
+    (True, True)
     """
-    dcfg: DualConfig = cfg.dual
-    mode = mode_of(frames)
-    bins, m = appearance_bins(colour_image(frames, mode), cfg.histogram)
-    vis, ir = filter_images(frames, mode)
-    states, results = [], []
-    H, W = frames.shape
-    for t in targets:
+
+    motion: Motion
+    colour: ColourCue
+    contour: ContourCue
+    decider: Decider
+    size: SizeModel
+    lifecycle: Lifecycle
+    appearance: AppearanceCue | None = None
+    extent: ExtentCue | None = None
+    redetector: Redetector | None = None
+    groups: GroupHandler | None = None
+
+    @classmethod
+    def from_config(cls, cfg: DualConfig) -> Dual:
+        """The composition ``cfg`` describes (``dual`` section; a part None there is absent)."""
+        return cls(
+            motion=Motion(cfg.motion, cfg.kalman),
+            colour=ColourCue(cfg.colour, cfg.histogram, cfg.meanshift, cfg.model_update),
+            contour=ContourCue(cfg.contour, cfg.levelset),
+            decider=Decider(cfg.decider),
+            size=SizeModel(cfg.size),
+            lifecycle=Lifecycle(cfg.lifecycle),
+            appearance=AppearanceCue(cfg.appearance) if cfg.appearance is not None else None,
+            extent=ExtentCue(cfg.extent) if cfg.extent is not None else None,
+            redetector=Redetector(cfg.redetect) if cfg.redetect is not None else None,
+            groups=GroupHandler(cfg.groups) if cfg.groups is not None else None,
+        )
+
+    @classmethod
+    def paper(cls) -> Dual:
+        """The paper's tracker (:meth:`DualConfig.paper`)."""
+        return cls.from_config(DualConfig.paper())
+
+    def warm_up(self) -> None:
+        """Compile or load the parts' numba kernels once per process, so that the first timed
+        frame does not pay for them."""
+        histogram_stage.warm_up()
+        contour_stage.warm_up()
+        if self.appearance is not None:
+            app_stage.warm_up()
+
+    lazy_background: ClassVar[bool] = True  # the whole-frame search seldom runs
+
+    @staticmethod
+    def detector_channel(channels: tuple[str, ...]) -> str:
+        """The whole-frame search detects in the IR frame, in the visible one without IR."""
+        return "infrared" if "infrared" in channels else "visible"
+
+    @property
+    def detection(self) -> DetectionConfig | None:
+        """The detector settings of the whole-frame search (None without a re-detector): what
+        the sequence's background is estimated for."""
+        return self.redetector.detection if self.redetector is not None else None
+
+    # ------------------------------------------------------------------------------ frame 1
+    def init(
+        self, frames: FramePair, targets: Sequence[InitTarget], background: BackgroundSource = None
+    ) -> tuple[DualState, FrameResult]:
+        """Start on the first frame: every target's colour model, filter and level set;
+        ``background`` is the detector's for this frame (:attr:`DualState.background`)."""
+        mode = mode_of(frames)
+        qs = self.colour.models(frames, mode, [t.box for t in targets])
+        ir = frames.infrared if mode in ("dual", "ir") else None
+        states, results = [], []
+        for t, q in zip(targets, qs, strict=True):
+            c = self.contour.first(ir, t.box) if ir is not None else None
+            states.append(self._first(frames, mode, t, q, c))
+            results.append(
+                TargetResult(
+                    t.id,
+                    t.box,
+                    TargetStatus.TRACKING,
+                    "init",
+                    {"levelset": c.iterations if c is not None else 0},
+                    1.0,
+                    "none:init",
+                    1.0,
+                    c.contour if c is not None else (),
+                    decision=f"{Case.INIT.value}:{Rule.GIVEN.value}",
+                )
+            )
+        return DualState(tuple(states), mode, background=background), FrameResult(
+            frames.index, tuple(results)
+        )
+
+    def _first(self, frames: FramePair, mode: str, t: InitTarget, q, c: ContourResult | None):
+        """The state of target ``t`` on its first frame (its contour ``c``)."""
         b = t.box
-        q = kernel_histogram(bins, t.box, m)
-        kf = kalman.init_state(t.box, cfg.kalman)
-        c = extract_contour(ir, t.box, cfg.contour, cfg.levelset) if ir is not None else None
+        H, W = frames.shape
         # walking in: the given box and the target's IR blob are both cut by the frame's border
         cut = c.at_border if c is not None and c.box is not None else (False, False)
         entering = (
             cut[0] and (b.x <= 1.0 or b.x2 >= W - 1.0),
             cut[1] and (b.y <= 1.0 or b.y2 >= H - 1.0),
         )
-        model = app.train(vis, ir, t.box, cfg.appearance) if dcfg.appearance_cue else None
-        states.append(
-            DualTarget(
-                t.id,
-                t.box,
-                (t.box.w, t.box.h),
-                q,
-                TargetStatus.TRACKING,
-                kf,
-                c.memory if c is not None and c.box is not None else None,
-                t.box.center,
-                ((1.0, t.box.cx, t.box.cy, t.box.w, t.box.h),),
-                appearance=model,
-                app_size=(t.box.w, t.box.h),
-                entering=entering,
-            )
+        model = self.appearance.train(frames, mode, b) if self.appearance is not None else None
+        return DualTarget(
+            t.id,
+            b,
+            (b.w, b.h),
+            q,
+            TargetStatus.TRACKING,
+            self.motion.start(b),
+            c.memory if c is not None and c.box is not None else None,
+            b.center,
+            ((1.0, b.cx, b.cy, b.w, b.h),),
+            appearance=model,
+            app_size=(b.w, b.h),
+            entering=entering,
         )
-        results.append(
-            TargetResult(
-                t.id,
-                t.box,
-                TargetStatus.TRACKING,
-                "init",
-                {"levelset": c.iterations if c is not None else 0},
-                1.0,
-                "none:init",
-                1.0,
-                c.contour if c is not None else (),
-                decision="init:given",
-            )
-        )
-    return DualState(tuple(states), mode, background=background), FrameResult(
-        frames.index, tuple(results)
-    )
 
-
-def step(
-    state: DualState, frames: FramePair, cfg: PipelineConfig
-) -> tuple[DualState, FrameResult]:
-    """One frame: mean shift for every target, the merge test (eq. 10), then each group and each
-    single target."""
-    t0 = time.perf_counter()
-    timing: dict[str, float] = {}
-    dcfg: DualConfig = cfg.dual
-    steps = {t.id: colour_stage(frames, t, cfg, state.mode, timing) for t in state.targets}
-    # eq. 10 on the mean-shift positions; a member of a merge is tested at its prediction instead,
-    # since its mean shift may sit on whoever hides it (a look-alike, above all) and would hold the
-    # group together
-    live = {
-        i: cs.box_prior if cs.t.status == TargetStatus.MERGED else cs.box1
-        for i, cs in steps.items()
-        if cs.t.status != TargetStatus.LOST
-    }
-    held = {
-        i for i, cs in steps.items() if frames.index - cs.t.split_frame <= dcfg.split_hold_frames
-    }
-    merging = dcfg.merge_handling and state.mode != "visible" and len(live) > 1
-    groups = merge_groups(live, held, dcfg.remerge_scale) if merging else []
-    in_group = {i for g in groups for i in g}
-    done: dict[int, tuple[DualTarget, TargetResult, list[Event]]] = {}
-    new_groups = []
-    for g in groups:
-        out, mem = finish_group(
-            frames, [steps[i] for i in g], cfg, state.mode, timing, state.groups
+    # ------------------------------------------------------------------------- every frame
+    def step(self, state: DualState, frames: FramePair) -> tuple[DualState, FrameResult]:
+        """One frame: the colour step of every target, the merge test (eq. 10), then each
+        group and each single target."""
+        t0 = time.perf_counter()
+        timing: dict[str, float] = {}
+        steps = {t.id: self._colour_step(frames, t, state.mode, timing) for t in state.targets}
+        live = live_boxes(steps)
+        groups = []
+        if self.groups is not None and state.mode != "visible":
+            groups = self.groups.groups(steps, live, frames.index)
+        done, memories = self._groups(frames, groups, steps, state, timing)
+        for i, cs in steps.items():
+            if i not in done:
+                others = tuple(b for j, b in live.items() if j != i)
+                done[i] = self._alone(frames, cs, state, timing, others)
+        new, results, events = [], [], []
+        for t in state.targets:
+            nt, r, ev = done[t.id]
+            new.append(nt)
+            results.append(r)
+            events += ev
+        timing["dual"] = time.perf_counter() - t0
+        return (
+            dataclasses.replace(state, targets=tuple(new), groups=tuple(memories)),
+            FrameResult(frames.index, tuple(results), tuple(events), timing),
         )
-        done.update(out)
-        if mem is not None:
-            new_groups.append(mem)
-    for i, cs in steps.items():
-        if i in in_group:
-            continue
+
+    def _groups(
+        self,
+        frames: FramePair,
+        groups: list[tuple[int, ...]],
+        steps: dict[int, ColourStep],
+        state: DualState,
+        timing: dict[str, float],
+    ) -> tuple[dict[int, Done], list[GroupMemory]]:
+        """Every merged group's members this frame, and the groups' level sets."""
+        done: dict[int, Done] = {}
+        memories = []
+        for g in groups:
+            out, mem = self._group(frames, [steps[i] for i in g], state, timing)
+            done.update(out)
+            if mem is not None:
+                memories.append(mem)
+        return done, memories
+
+    def _colour_step(
+        self, frames: FramePair, t: DualTarget, mode: str, timing: dict[str, float]
+    ) -> ColourStep:
+        """The motion prior and the mean shift of ``t`` (the paper's step 2)."""
+        clock = time.perf_counter()
+        prior = self.motion.predict(t)
+        y0 = self.motion.search_start(t, prior)
+        add_time(timing, "kalman", clock)
+        return self.colour.step(frames, t, prior, y0, mode, timing)
+
+    def _alone(
+        self,
+        frames: FramePair,
+        cs: ColourStep,
+        state: DualState,
+        timing: dict[str, float],
+        others: tuple[BBox, ...],
+    ) -> Done:
+        """A target in no group this frame; one whose group dissolved without a visible split
+        starts again from its prediction."""
         ev: list[Event] = []
         start = None
-        if cs.t.status == TargetStatus.MERGED:  # its group dissolved without a visible split
-            ev.append(Event(EventKind.SPLIT, f"T{i} separated (merge test no longer holds)", (i,)))
+        if cs.t.status == TargetStatus.MERGED:
+            text = f"T{cs.t.id} separated (merge test no longer holds)"
+            ev.append(Event(EventKind.SPLIT, text, (cs.t.id,)))
             start = cs.box_prior.center
-        others = tuple(b for j, b in live.items() if j != i)
-        done[i] = finish_single(
-            frames,
-            cs,
-            cfg,
-            state.mode,
-            timing,
-            start=start,
-            events_in=ev,
-            neighbours=others,
-            background=state.background,
+        m = single.measure(self, frames, cs, state.mode, timing, start, state.background)
+        return single.update(self, frames, m, state.mode, timing, ev, others)
+
+    # ---------------------------------------------------------------------- merged groups
+    def _group(
+        self,
+        frames: FramePair,
+        css: list[ColourStep],
+        state: DualState,
+        timing: dict[str, float],
+    ) -> tuple[dict[int, Done], GroupMemory | None]:
+        """One merged group this frame: its members split onto their blobs, or placed in the
+        group's blob. Returns every member's outcome and the group's level set (None after a
+        split or without a contour)."""
+        gh = self.groups
+        assert gh is not None and frames.infrared is not None
+        clock = time.perf_counter()
+        g = gh.blob(self.contour, frames.infrared, css, state.groups)
+        clock = add_time(timing, "levelset", clock)
+        blobs = gh.parts(g)
+        if len(blobs) >= len(css):  # split: every member has its own blob again
+            out = {}
+            for cs, blob, others, ev in gh.split(self.colour, g, blobs):
+                # a member continues on its own from the blob, not from the group's level set
+                t = dataclasses.replace(cs.t, memory=None, status=TargetStatus.OCCLUDED_PARTIAL)
+                alone = dataclasses.replace(cs, t=t)
+                m = single.measure(self, frames, alone, state.mode, timing, blob.center)
+                out[t.id] = single.update(self, frames, m, state.mode, timing, ev, others)
+            return out, None
+        c = g.contour
+        roles = gh.roles(g, c.box is not None and self.contour.contrasted(c))
+        events = gh.merge_events(g, roles)
+        placed = gh.placements(g, roles)
+        members = {}
+        for cs in css:
+            nt, res = self._merged(cs, g, roles, gh.place(cs, g, roles, placed), events)
+            members[cs.t.id] = (nt, res)
+        out = {
+            i: (nt, res, events if i == roles.foreground else [])
+            for i, (nt, res) in members.items()
+        }
+        add_time(timing, "merge", clock)
+        mem = None
+        if c.box is not None:
+            mem = GroupMemory(g.ids, c.memory, g.box.center, roles.foreground)
+        return out, mem
+
+    def _merged(
+        self,
+        cs: ColourStep,
+        g: GroupBlob,
+        roles: Roles,
+        placement: tuple[tuple[float, float], Rule],
+        events: list[Event],
+    ) -> tuple[DualTarget, TargetResult]:
+        """A member of a merged group at its placement: corrected there (or coasting, placed by
+        its motion), no model learning; lost once hidden too long (the event joins ``events``)."""
+        gh = self.groups
+        assert gh is not None
+        t, c = cs.t, g.contour
+        (y, rule), ref = placement, t.reference_size
+        out = BBox.from_center(y[0], y[1], ref[0], ref[1])
+        missing, kf = 0, None
+        if rule == Rule.MERGE_MOTION:
+            kf, missing = cs.prior, t.missing + 1
+        else:
+            kf = self.motion.correct(cs.prior, out)
+        status = self.lifecycle.merged_status(missing)
+        if status == TargetStatus.LOST:
+            kf = self.motion.stop(kf)
+            events += self.lifecycle.lost_in_group(t.id, t.status, missing)
+        update = UpdateDecision(False, "merged")
+        nt = dataclasses.replace(
+            t,
+            box=out,
+            status=status,
+            kf=kf,
+            memory=None,
+            missing=missing,
+            last_update=str(update),
+            case=Case.MERGED.value,
         )
-    new, results, events = [], [], []
-    for t in state.targets:
-        nt, r, ev = done[t.id]
-        new.append(nt)
-        results.append(r)
-        events += ev
-    timing["dual"] = time.perf_counter() - t0
-    return (
-        dataclasses.replace(state, targets=tuple(new), groups=tuple(new_groups)),
-        FrameResult(frames.index, tuple(results), tuple(events), timing),
-    )
+        fg = t.id == roles.foreground
+        res = TargetResult(
+            t.id,
+            out,
+            status,
+            f"merge-{rule.value}",
+            {"meanshift": cs.ms_iters, "levelset": c.iterations},
+            cs.rho1,
+            str(update),
+            gh.confidence(fg),
+            c.contour if fg else (),
+            gh.diagnostics(cs, g, roles, missing),
+            {"prediction": cs.prior.box, "meanshift": cs.box1},
+            decision=f"{Case.MERGED.value}:{rule.value}",
+        )
+        return nt, res

@@ -1,0 +1,114 @@
+"""The dual tracker's contour cue: the DRLSE level set in the IR frame (the paper's step 3) and
+the checks that make a contour a measurement."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.stages.contour import (
+    ContourConfig,
+    ContourReason,
+    ContourResult,
+    LevelSetMemory,
+    extract_contour,
+)
+from pipeline.stages.levelset import LevelSetConfig
+from pipeline.trackers.dual.state import DualTarget
+from pipeline.types import BBox
+
+
+@dataclass(frozen=True)
+class ContourCue:
+    """The IR contour of a target (or of a merged group), started where the other cues put it.
+
+    Parameters
+    ----------
+    cfg : ContourConfig
+        ``dual.contour``: region, starts, failure tests, and whether the tracker applies them.
+    levelset : LevelSetConfig
+        ``dual.levelset``: the DRLSE evolution.
+    """
+
+    cfg: ContourConfig
+    levelset: LevelSetConfig
+
+    def first(self, ir: np.ndarray, box: BBox) -> ContourResult:
+        """The contour of a target given at ``box`` on its first frame (a cold start)."""
+        return extract_contour(ir, box, self.cfg, self.levelset)
+
+    def start(
+        self,
+        filter_box: BBox | None,
+        meanshift: tuple[float, float],
+        prediction: tuple[float, float],
+        colour_good: bool,
+    ) -> tuple[float, float]:
+        """Where the level set starts: the filter's detection when it is confident
+        (``filter_box``, else None), the mean shift when its colour match is good (or always,
+        with ``start_at = "meanshift"``), else the prediction."""
+        if filter_box is not None:
+            return filter_box.center
+        if colour_good or self.cfg.start_at == "meanshift":
+            return meanshift
+        return prediction
+
+    def extract(
+        self,
+        ir: np.ndarray,
+        t: DualTarget,
+        start: tuple[float, float],
+        cold: bool = False,
+    ) -> ContourResult:
+        """The contour of ``t`` around ``start`` at its current size, warm-started from its last
+        good level set moved by its displacement (unless ``cold``)."""
+        expected = BBox.from_center(start[0], start[1], t.size[0], t.size[1])
+        memory = None if cold else t.memory
+        shift = (start[0] - t.memory_center[0], start[1] - t.memory_center[1])
+        return extract_contour(ir, expected, self.cfg, self.levelset, memory, shift)
+
+    def group(
+        self,
+        ir: np.ndarray,
+        box: BBox,
+        memory: LevelSetMemory | None,
+        shift: tuple[float, float],
+        cold_scale: float,
+        max_ratio: float,
+        part_width: float,
+    ) -> ContourResult:
+        """One contour over a merged group's ``box`` (the union of its members), whose area and
+        sides may reach ``max_ratio`` times the box's (it holds several targets)."""
+        cfg = dataclasses.replace(
+            self.cfg, max_area_ratio=max_ratio, max_dimension_ratio=max_ratio
+        )
+        return extract_contour(
+            ir,
+            box,
+            cfg,
+            self.levelset,
+            memory,
+            shift,
+            cold_init=box.scaled(cold_scale),
+            part_width=part_width,
+        )
+
+    def usable(self, c: ContourResult | None) -> bool:
+        """A contour with a box that the tracker may measure with: one that passed the failure
+        tests, or any without ``checks``, or one that failed only for low contrast with
+        ``trust_faded``."""
+        return (
+            c is not None
+            and c.box is not None
+            and (
+                c.ok
+                or not self.cfg.checks
+                or (self.cfg.trust_faded and c.reason == ContourReason.LOW_CONTRAST)
+            )
+        )
+
+    def contrasted(self, c: ContourResult | None, factor: float = 1.0) -> bool:
+        """The contour's contrast reaches ``factor`` times ``min_contrast``."""
+        return c is not None and abs(c.contrast) >= factor * self.cfg.min_contrast
