@@ -287,7 +287,8 @@ def _cmd_track(a: argparse.Namespace) -> int:
             align=a.align,
             gt_base=a.gt_base,
             config_path=a.config,
-            sets=a.set + ([f"detect.association.associator={a.associator}"] if a.associator else []),
+            sets=a.set
+            + ([f"detect.association.associator={a.associator}"] if a.associator else []),
             rrd=not a.no_rrd,
             plots=not a.no_plots,
             protocol=a.protocol,

@@ -114,7 +114,11 @@ def run_detect(
 
     seq = open_sequence(seq_path, **open_kw)  # type: ignore[arg-type]
     cfg = load_config(config_path, sets or [])
-    ch = cfg.detect.detection.channel if cfg.detect.detection.channel in seq.channels else seq.channels[0]
+    ch = (
+        cfg.detect.detection.channel
+        if cfg.detect.detection.channel in seq.channels
+        else seq.channels[0]
+    )
     out = Path(out)
     truth = seq.truth.primary() if seq.truth.has_truth else {}
     vis = seq.meta.get("visibility", {})
@@ -137,7 +141,10 @@ def run_detect(
             bg_s[0] += time.perf_counter() - tb
         t0 = time.perf_counter()
         d = detect(
-            to_grey(img), cfg.detect.detection, background[0], fp.visible if ch == "infrared" else None
+            to_grey(img),
+            cfg.detect.detection,
+            background[0],
+            fp.visible if ch == "infrared" else None,
         )
         background[0] = d.background
         dt = time.perf_counter() - t0
@@ -157,7 +164,9 @@ def run_detect(
 
         sinks: list = [AdaptedSink(DetectionFiles(out), _write_files)]
         if rrd:
-            rec = DetectionRecording(out / "detections.rrd", ch, seq.name, cfg.detect.detection.min_std)
+            rec = DetectionRecording(
+                out / "detections.rrd", ch, seq.name, cfg.detect.detection.min_std
+            )
             sinks.append(AdaptedSink(rec, _recording_writer(ch)))
         return sinks
 

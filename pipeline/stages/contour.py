@@ -406,7 +406,9 @@ def extract_contour(
     contrast = _ring_contrast(roi, sel_u8)
     cs, _ = cv2.findContours(sel_u8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     contour = tuple(
-        c.reshape(-1, 2).astype(np.float64) + np.array([x0 + 0.5, y0 + 0.5]) for c in cs if len(c) >= 3
+        c.reshape(-1, 2).astype(np.float64) + np.array([x0 + 0.5, y0 + 0.5])
+        for c in cs
+        if len(c) >= 3
     )
     reason = ContourReason.OK
     if touches:
