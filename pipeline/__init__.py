@@ -23,9 +23,7 @@ Examples
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
-# the modules below read __version__
+from pipeline._version import __version__
 from pipeline.api import (
     DetectTracker,
     DualTracker,

@@ -442,9 +442,8 @@ def run_random_bench(
     """
     import json as _json
 
-    from pipeline.eval import track_for_truth
+    from pipeline.eval import Assessment
     from pipeline.eval.frame_attributes import attribute_counts, attribute_masks, pool_counts
-    from pipeline.eval.mot import idf1 as idf1_assignment
     from pipeline.io.results import read_tracks
 
     tmp = None
@@ -474,13 +473,10 @@ def run_random_bench(
             run = Path(out) / "runs" / str(r["tracker"]) / d.name
             seq = open_sequence(d)
             tracks = read_tracks(run / "tracks.csv", seq.n_frames)
-            ch = seq.truth.primary_channel()
-            gt = seq.truth.boxes[ch] if ch else {}
-            mapping = idf1_assignment(gt, tracks.boxes)["mapping"] if tracks.boxes else {}
-            which = track_for_truth(list(gt), tracks, mapping, "truth")  # type: ignore[arg-type]
+            assessment = Assessment(seq.truth, tracks, seq.n_frames, "truth")
             meta = _json.loads((d / "scene.json").read_text())
             attr_counts.setdefault(str(r["tracker"]), []).append(
-                attribute_counts(seq.truth, tracks, attribute_masks(meta, seq.n_frames), which)
+                attribute_counts(assessment, attribute_masks(meta, seq.n_frames))
             )
         result = {
             "split": split if seeds is None else "seeds",

@@ -45,7 +45,7 @@ def _add_open_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from pipeline import __version__
+    from pipeline._version import __version__
     from pipeline.eval.protocols import PROTOCOLS
 
     parser = _Parser(prog=PROG, description="Tracking in registered infrared + visible video.")

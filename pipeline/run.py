@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline import __version__
+from pipeline._version import __version__
 from pipeline.config import PipelineConfig, config_to_dict, load_config
 from pipeline.errors import InputError
 from pipeline.io.init import resolve_init
 from pipeline.io.sequence import FramePair, Sequence, open_sequence
 from pipeline.trackers import DEFAULT_TRACKER, Engine, make_tracker
 from pipeline.trackers.base import attach_sequence
-from pipeline.types import BBox, FrameResult, FrameTruth, InitTarget, TruthMatch
+from pipeline.types import BBox, FrameResult, FrameTruth, InitTarget
 
 RUN_FILES = ("tracks.csv", "targets.csv", "run.rrd", "summary.json", "plots")
 
@@ -134,32 +134,6 @@ class RunResult:
     )
 
 
-def frame_truth(seq: Sequence, result: FrameResult) -> FrameTruth:
-    """The truth of this frame per channel, and each target's centre error, IoU and truth match
-    against the scored channel's truth (ids as in the truth; a target that is not reported scores
-    as a failure)."""
-    i = result.frame - 1
-    boxes = {
-        ch: {tid: BBox(*b[i]) for tid, b in table.items() if not np.isnan(b[i]).any()}
-        for ch, table in seq.truth.boxes.items()
-    }
-    scored = boxes.get(seq.truth.primary_channel() or "", {})
-    err, iou, match = {}, {}, {}
-    for t in result.targets:
-        g = scored.get(t.id)
-        if g is None:
-            if t.id in seq.truth.primary():
-                match[t.id] = TruthMatch.NO_TRUTH
-            continue
-        if t.status.is_reported:
-            err[t.id] = float(np.hypot(t.box.cx - g.cx, t.box.cy - g.cy))
-            iou[t.id] = t.box.iou(g)
-        else:
-            err[t.id], iou[t.id] = float("inf"), 0.0
-        match[t.id] = TruthMatch.OVERLAP if iou[t.id] > 0 else TruthMatch.FAILURE
-    return FrameTruth(boxes, err, iou, match)
-
-
 @dataclass(frozen=True)
 class TrackItem:
     """What the track sinks get per frame: the tracker's result and, with truth, how it scores."""
@@ -222,7 +196,7 @@ def run_track(
         from dataclasses import replace
 
         opts = replace(opts, config=config)
-    from pipeline.eval import curves, evaluate
+    from pipeline.eval import Assessment, frame_truth
     from pipeline.io.results import TrackTable
     from pipeline.runloop import AdaptedSink, Job, run_job
 
@@ -279,7 +253,7 @@ def run_track(
                 boxes[t.id] = np.full((seq.n_frames, 4), np.nan)
             if t.status.is_reported:
                 boxes[t.id][frames.index - 1] = t.box.as_tuple()
-        return TrackItem(result, frame_truth(seq, result) if has_truth else None)
+        return TrackItem(result, frame_truth(seq.truth, result) if has_truth else None)
 
     def make_sinks() -> list:
         from pipeline.sinks.csv_sink import CsvSink
@@ -314,15 +288,13 @@ def run_track(
         truth = _truncate(seq, done)
         table = TrackTable({k: v[:done] for k, v in boxes.items()}, {})
         id_rule = "assign" if detected_ids else "truth"  # detection-made ids are arbitrary
-        extra: dict[str, object] = {
-            "metrics": evaluate(truth, table, done, opts.protocol, id_rule)
-        }
+        assessment = Assessment(truth, table, done, id_rule)  # the run's one evaluation
+        extra: dict[str, object] = {"metrics": assessment.metrics(opts.protocol)}
         if opts.plots:
             from pipeline.sinks.plots import write_plots
 
-            write_plots(
-                out / "plots", curves(truth, table, done, id_rule), f"{seq.name} / {opts.tracker}"
-            )
+            title = f"{seq.name} / {opts.tracker}"
+            write_plots(out / "plots", assessment.curves(), title)
         return extra
 
     job = Job(

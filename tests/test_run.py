@@ -84,7 +84,8 @@ def test_run_folder_contract(scene, tmp_path):
 
 def test_rrd_reads_back_equal_to_csv(scene, tmp_path):
     seq_dir = scene("occluder")
-    out = run_track(seq_dir, RunOptions(tracker="meanshift", out_dir=tmp_path / "run")).out_dir
+    res = run_track(seq_dir, RunOptions(tracker="meanshift", out_dir=tmp_path / "run"))
+    out = res.out_dir
     verify = subprocess.run(
         [str(Path(sys.executable).parent / "rerun"), "rrd", "verify", str(out / "run.rrd")],
         capture_output=True,
@@ -118,6 +119,14 @@ def test_rrd_reads_back_equal_to_csv(scene, tmp_path):
     )
     err = rows(store, "/metrics/1/center_error_px", ["Scalars:scalars"])
     assert err.num_rows == 220
+    # the recording's series are the run's one evaluation, frame by frame
+    from pipeline.eval import Assessment
+    from pipeline.io.results import TrackTable
+
+    seq = open_sequence(seq_dir)
+    a = Assessment(seq.truth, TrackTable(res.boxes, {}), seq.n_frames)
+    logged = np.array([v[0] for v in err["Scalars:scalars"].to_pylist()], float)
+    np.testing.assert_allclose(logged, a.errors[1][err["frame"].to_numpy() - 1], rtol=1e-6)
     ev = texts(store, "/events")
     assert ev and ev[0][0] == 1 and "[start] meanshift on occluder" in ev[0][1]
     assert "/config" in [str(p) for p in store.schema().entity_paths()]

@@ -27,7 +27,7 @@ def main() -> None:
 
     from pipeline.config import PipelineConfig
     from pipeline.stages import kalman
-    from pipeline.stages.association import get_associator
+    from pipeline.stages.association import hungarian
     from pipeline.stages.detection import detect
     from pipeline.trackers.detect import DetTrack, _kcfg, pair_costs
     from pipeline.types import TargetStatus
@@ -83,7 +83,7 @@ def main() -> None:
     gated = int(np.isfinite(cost).sum())
     miss = np.full(len(tracks), 2.3)
     new = np.full(len(regions), 9.2)
-    hung = get_associator("hungarian")
+    hung = hungarian
     t_hung, res = timed(lambda: hung(np.where(np.isfinite(cost), cost, 1e9), miss, new))
     print(
         f"640x480 frame, {len(tracks)} tracks x {len(regions)} detections (of {a.detections} "

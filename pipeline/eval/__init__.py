@@ -36,6 +36,7 @@ from pipeline.eval.single import (
 )
 from pipeline.io.results import TrackTable, read_tracks
 from pipeline.io.sequence import Truth, open_sequence
+from pipeline.types import BBox, FrameResult, FrameTruth, TruthMatch
 
 ID_RULES = ("auto", "truth", "assign")
 SINGLE_KEYS = ("p5", "p20", "auc", "mean_error_px", "npr", "mpr", "msr")
@@ -61,6 +62,196 @@ def track_for_truth(
     return {g: mapping.get(g) for g in truth_ids}
 
 
+class Assessment:
+    """One evaluation of a run against its truth, computed once: which track each truth id is
+    scored against, every target's per-frame centre errors and IoUs, the identity assignment
+    and the many-target frame data; the metrics (:meth:`metrics`), the plots' curves
+    (:meth:`curves`) and the per-attribute counts are all read from it.
+
+    Parameters
+    ----------
+    truth : Truth
+        The sequence's truth (the scored channel is the visible one when both have truth).
+    tracks : TrackTable
+        The run's boxes per track id.
+    n_frames : int
+        Frames scored (the first ``n_frames`` of the sequence).
+    id_rule : {"auto", "truth", "assign"}
+        Which track is scored against which truth id (module doc).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from pipeline.io.results import TrackTable
+    >>> from pipeline.io.sequence import Truth
+    >>> gt = {1: np.array([[0, 0, 10, 10], [2, 0, 10, 10.0]])}
+    >>> shifted = TrackTable({1: gt[1] + [3, 3, 0, 0]}, {})  # 3 px right and down
+    >>> a = Assessment(Truth({"visible": gt}, {}, {}, False), shifted, 2)
+    >>> a.errors[1].round(2).tolist(), a.metrics()["p5"]
+    ([4.24, 4.24], 1.0)
+    """
+
+    def __init__(self, truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto"):
+        if id_rule not in ID_RULES:
+            raise ValueError(f"id_rule must be one of {ID_RULES}; got {id_rule!r}")
+        ch = truth.primary_channel()
+        if ch is None:
+            raise ValueError("the sequence has no ground truth")
+        self.truth, self.n_frames, self.id_rule, self.channel = truth, n_frames, id_rule, ch
+        self.gt = truth.boxes[ch]
+        self.ids = list(self.gt)
+        if truth.distractors:  # boxes on a distractor are neither true nor false positives
+            boxes = mot.drop_distractor_matches(self.gt, tracks.boxes, truth.distractors)
+            tracks = dataclasses.replace(tracks, boxes=boxes)
+        self.tracks = tracks
+        self.data = mot.sequence_data(self.gt, tracks.boxes, n_frames)
+        self.id_info = (
+            mot.idf1(self.gt, tracks.boxes, data=self.data)
+            if tracks.boxes
+            else {"idf1": 0.0, "idp": 0.0, "idr": 0.0, "mapping": {}}
+        )
+        self.which = track_for_truth(self.ids, tracks, self.id_info["mapping"], id_rule)
+        self.errors = {g: center_errors(self.pred(g), self.gt[g]) for g in self.ids}
+        self.overlaps = {g: ious(self.pred(g), self.gt[g]) for g in self.ids}
+
+    def pred(self, g: int) -> np.ndarray:
+        """The boxes scored against truth id ``g`` (NaN rows where there are none)."""
+        t = self.which[g]
+        return self.tracks.boxes[t] if t is not None else np.full((self.n_frames, 4), np.nan)
+
+    def multi(self) -> bool:
+        """Whether the many-target scores apply: several targets or tracks, or a MOT truth."""
+        return self.truth.multi or len(self.ids) > 1 or len(self.tracks.boxes) > 1
+
+    def metrics(
+        self, protocol: str = "default", mot_rule: str = "trackeval", multi: bool | None = None
+    ) -> dict[str, object]:
+        """The ``evaluate --json`` object (module doc) under ``protocol``; ``multi`` asks for
+        the many-target scores even for one target and one track."""
+        if protocol not in protocols.PROTOCOLS:
+            raise ValueError(f"protocol must be one of {protocols.PROTOCOLS}; got {protocol!r}")
+        if mot_rule not in mot.MATCH_RULES:
+            raise ValueError(f"mot_rule must be one of {mot.MATCH_RULES}; got {mot_rule!r}")
+        per = {str(g): self._target(g, protocol) for g in self.ids}
+        out: dict[str, object] = {"protocol": protocol, "channel": self.channel}
+        if protocol == "gtot":
+            out.update(self._gtot_pooled())
+        else:
+            skip = ("frames", "frames_without_output", "track_id")
+            for k in (k for k in next(iter(per.values())) if k not in skip):
+                out[k] = _mean([per[str(g)].get(k, float("nan")) for g in self.ids])
+        out["frames"] = int(sum(p.get("frames", 0) for p in per.values()))
+        if self.multi() if multi is None else multi:
+            out.update(self._many(mot_rule))
+        out["targets"] = per
+        return json_safe(out)  # type: ignore[return-value]
+
+    def _target(self, g: int, protocol: str) -> dict[str, float]:
+        """Truth id ``g``'s scores under ``protocol`` (and the track scored, when not ``g``)."""
+        pred = self.pred(g)
+        if protocol == "default":
+            other = "infrared" if self.channel == "visible" else "visible"
+            gt_other = None if self.truth.multi else self.truth.boxes.get(other, {}).get(g)
+            out = single_target_metrics(
+                pred, self.gt[g], gt_other, err=self.errors[g], ov=self.overlaps[g]
+            )
+        else:
+            gv = self.truth.boxes.get("visible", {}).get(g)
+            gi = self.truth.boxes.get("infrared", {}).get(g)
+            out = protocols.PROTOCOL_FUNCTIONS[protocol](pred, gv, gi)
+        t = self.which[g]
+        if t is not None and t != g:
+            out["track_id"] = t
+        return out
+
+    def gtot_counts(self) -> dict[str, object]:
+        """GTOT's hit counts of every target, pooled (``frames``, ``precision_counts``,
+        ``success_counts``)."""
+        pooled = [
+            protocols.gtot_counts(
+                self.pred(g),
+                self.truth.boxes.get("visible", {}).get(g),
+                self.truth.boxes.get("infrared", {}).get(g),
+            )
+            for g in self.ids
+        ]
+        return {
+            "frames": sum(int(p["frames"]) for p in pooled),
+            "precision_counts": np.sum([p["precision_counts"] for p in pooled], axis=0),
+            "success_counts": np.sum([p["success_counts"] for p in pooled], axis=0),
+        }
+
+    def _gtot_pooled(self) -> dict[str, object]:
+        c = self.gtot_counts()
+        pooled = protocols.gtot_from_counts(
+            c["frames"], c["precision_counts"].tolist(), c["success_counts"].tolist()
+        )
+        return {k: v for k, v in pooled.items() if k != "frames"}
+
+    def _many(self, mot_rule: str) -> dict[str, object]:
+        """CLEAR-MOT, IDF1, purity and HOTA."""
+        gt, boxes = self.gt, self.tracks.boxes
+        fm = mot.match_frames(gt, boxes, self.n_frames, rule=mot_rule, data=self.data)
+        out: dict[str, object] = dict(mot.clear_mot(fm))
+        out["mot_rule"] = mot_rule
+        out["idf1"] = self.id_info["idf1"]
+        out["idp"], out["idr"] = self.id_info["idp"], self.id_info["idr"]
+        out["purity"] = mot.purity_matrix(gt, boxes, fm)
+        out.update(mot.hota(gt, boxes, self.n_frames, data=self.data))
+        return out
+
+    def curves(self) -> dict[int, dict[str, np.ndarray]]:
+        """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,), for the plots."""
+        return {
+            g: {
+                "errors": self.errors[g],
+                "precision": precision_curve(self.errors[g]),
+                "success": success_curve(self.overlaps[g]),
+            }
+            for g in self.ids
+        }
+
+
+def frame_truth(truth: Truth, result: FrameResult) -> FrameTruth:
+    """The truth of one frame per channel, and each target's centre error, IoU and truth match
+    against the scored channel's truth, by the formulas of :class:`Assessment` (a recording
+    streams them while the run goes, so they are computed frame by frame; ids as in the truth,
+    a target not reported scores as a failure: error ``inf``, IoU 0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from pipeline.io.sequence import Truth
+    >>> from pipeline.types import BBox, FrameResult, TargetResult, TargetStatus
+    >>> truth = Truth({"visible": {1: np.array([[0, 0, 10, 10.0]])}}, {}, {}, False)
+    >>> r = FrameResult(1, (TargetResult(1, BBox(3, 4, 10, 10), TargetStatus.TRACKING, "x"),))
+    >>> ft = frame_truth(truth, r)
+    >>> ft.center_error_px[1], round(ft.iou[1], 3), ft.match[1].value
+    (5.0, 0.266, 'overlap')
+    """
+    i = result.frame - 1
+    boxes = {
+        ch: {tid: BBox(*b[i]) for tid, b in table.items() if not np.isnan(b[i]).any()}
+        for ch, table in truth.boxes.items()
+    }
+    ch = truth.primary_channel()
+    scored = truth.boxes.get(ch, {}) if ch is not None else {}
+    err, iou, match = {}, {}, {}
+    for t in result.targets:
+        gt = scored.get(t.id)
+        if gt is None:
+            continue
+        g = gt[i : i + 1]
+        if np.isnan(g).any():
+            match[t.id] = TruthMatch.NO_TRUTH
+            continue
+        pred = np.array([t.box.as_tuple() if t.status.is_reported else (np.nan,) * 4])
+        err[t.id] = float(center_errors(pred, g)[0])
+        iou[t.id] = float(ious(pred, g)[0])
+        match[t.id] = TruthMatch.OVERLAP if iou[t.id] > 0 else TruthMatch.FAILURE
+    return FrameTruth(boxes, err, iou, match)
+
+
 def evaluate(
     truth: Truth,
     tracks: TrackTable,
@@ -70,90 +261,15 @@ def evaluate(
     mot_rule: str = "trackeval",
     multi: bool | None = None,
 ) -> dict[str, object]:
-    """Score ``tracks`` against ``truth`` (see the module doc for the keys).
+    """Score ``tracks`` against ``truth``: ``Assessment(...).metrics(...)`` (the module doc
+    lists the keys).
 
     ``multi`` asks for the many-target scores (MOTA, IDF1, HOTA, purity, ...) even for one
-    target and one track; by default they come with several targets or tracks.
-
-    ``mot_rule`` is the CLEAR matching rule of the many-target scores: ``trackeval`` (the
-    MOTChallenge numbers, default) or ``motmetrics`` (py-motmetrics'; ``pipeline.eval.mot``).
+    target and one track; by default they come with several targets or tracks. ``mot_rule`` is
+    the CLEAR matching rule of the many-target scores: ``trackeval`` (the MOTChallenge numbers,
+    default) or ``motmetrics`` (py-motmetrics'; ``pipeline.eval.mot``).
     """
-    if protocol not in protocols.PROTOCOLS:
-        raise ValueError(f"protocol must be one of {protocols.PROTOCOLS}; got {protocol!r}")
-    if mot_rule not in mot.MATCH_RULES:
-        raise ValueError(f"mot_rule must be one of {mot.MATCH_RULES}; got {mot_rule!r}")
-    ch = truth.primary_channel()
-    if ch is None:
-        raise ValueError("the sequence has no ground truth")
-    gt = truth.boxes[ch]
-    other_ch = "infrared" if ch == "visible" else "visible"
-    gt_other = truth.boxes.get(other_ch) if not truth.multi else None
-    ids = list(gt)
-    if multi is None:
-        multi = truth.multi or len(ids) > 1 or len(tracks.boxes) > 1
-    if truth.distractors:
-        tracks = dataclasses.replace(
-            tracks, boxes=mot.drop_distractor_matches(gt, tracks.boxes, truth.distractors)
-        )
-    data = mot.sequence_data(gt, tracks.boxes, n_frames)
-    id_info = (
-        mot.idf1(gt, tracks.boxes, data=data)
-        if tracks.boxes
-        else {"idf1": 0.0, "idp": 0.0, "idr": 0.0, "mapping": {}}
-    )
-    which = track_for_truth(ids, tracks, id_info["mapping"], id_rule)  # type: ignore[arg-type]
-    empty = np.full((n_frames, 4), np.nan)
-
-    per: dict[str, dict[str, float]] = {}
-    for g in ids:
-        t = which[g]
-        pred = tracks.boxes[t] if t is not None else empty
-        if protocol == "default":
-            per[str(g)] = single_target_metrics(
-                pred, gt[g], gt_other[g] if gt_other and g in gt_other else None
-            )
-        else:
-            gv = truth.boxes.get("visible", {}).get(g)
-            gi = truth.boxes.get("infrared", {}).get(g)
-            per[str(g)] = protocols.PROTOCOL_FUNCTIONS[protocol](pred, gv, gi)
-        if t is not None and t != g:
-            per[str(g)]["track_id"] = t
-
-    out: dict[str, object] = {"protocol": protocol, "channel": ch}
-    keys = [
-        k
-        for k in next(iter(per.values()))
-        if k not in ("frames", "frames_without_output", "track_id")
-    ]
-    if protocol == "gtot":
-        pooled = [
-            protocols.gtot_counts(
-                tracks.boxes[which[g]] if which[g] is not None else empty,
-                truth.boxes.get("visible", {}).get(g),
-                truth.boxes.get("infrared", {}).get(g),
-            )
-            for g in ids
-        ]
-        frames = sum(p["frames"] for p in pooled)  # type: ignore[misc]
-        pc = np.sum([p["precision_counts"] for p in pooled], axis=0).tolist()
-        sc = np.sum([p["success_counts"] for p in pooled], axis=0).tolist()
-        out.update(
-            {k: v for k, v in protocols.gtot_from_counts(frames, pc, sc).items() if k != "frames"}
-        )
-    else:
-        for k in keys:
-            out[k] = _mean([per[str(g)].get(k, float("nan")) for g in ids])
-    out["frames"] = int(sum(p.get("frames", 0) for p in per.values()))
-    if multi:
-        fm = mot.match_frames(gt, tracks.boxes, n_frames, rule=mot_rule, data=data)
-        out.update({k: v for k, v in mot.clear_mot(fm).items()})
-        out["mot_rule"] = mot_rule
-        out["idf1"] = id_info["idf1"]
-        out["idp"], out["idr"] = id_info["idp"], id_info["idr"]
-        out["purity"] = mot.purity_matrix(gt, tracks.boxes, fm)
-        out.update(mot.hota(gt, tracks.boxes, n_frames, data=data))
-    out["targets"] = per
-    return json_safe(out)  # type: ignore[return-value]
+    return Assessment(truth, tracks, n_frames, id_rule).metrics(protocol, mot_rule, multi)
 
 
 def json_safe(x: object) -> object:
@@ -195,25 +311,9 @@ def evaluate_files(
 def curves(
     truth: Truth, tracks: TrackTable, n_frames: int, id_rule: str = "auto"
 ) -> dict[int, dict[str, np.ndarray]]:
-    """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,) for plots and the
-    .rrd."""
-    ch = truth.primary_channel()
-    assert ch is not None
-    gt = truth.boxes[ch]
-    id_info = mot.idf1(gt, tracks.boxes) if tracks.boxes else {"mapping": {}}
-    # type: ignore[arg-type]
-    which = track_for_truth(list(gt), tracks, id_info["mapping"], id_rule)
-    out = {}
-    for g, boxes in gt.items():
-        t = which[g]
-        pred = tracks.boxes[t] if t is not None else np.full((n_frames, 4), np.nan)
-        err = center_errors(pred, boxes)
-        out[g] = {
-            "errors": err,
-            "precision": precision_curve(err),
-            "success": success_curve(ious(pred, boxes)),
-        }
-    return out
+    """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,):
+    ``Assessment(...).curves()``."""
+    return Assessment(truth, tracks, n_frames, id_rule).curves()
 
 
-__all__ = ["curves", "evaluate", "evaluate_files", "json_safe"]
+__all__ = ["Assessment", "curves", "evaluate", "evaluate_files", "frame_truth", "json_safe"]

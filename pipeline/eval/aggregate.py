@@ -17,9 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.eval import curves as target_curves
-from pipeline.eval import protocols
-from pipeline.eval.mot import idf1 as idf1_assignment
+from pipeline.eval import Assessment, protocols
 from pipeline.io.results import read_tracks
 from pipeline.io.sequence import open_sequence
 
@@ -38,10 +36,10 @@ def sequence_curves(
 ) -> dict[str, object]:
     """Mean precision (51) and success (21) curves over the targets of one run, its frame
     count with truth, and for ``gtot`` the hit counts to pool (``id_rule`` as in
-    :func:`pipeline.eval.evaluate`)."""
+    :func:`pipeline.eval.evaluate`), read from the run's one :class:`~pipeline.eval.Assessment`."""
     seq = open_sequence(seq_dir)
-    tracks = read_tracks(tracks_csv, seq.n_frames)
-    per = target_curves(seq.truth, tracks, seq.n_frames, id_rule)
+    a = Assessment(seq.truth, read_tracks(tracks_csv, seq.n_frames), seq.n_frames, id_rule)
+    per = a.curves()
     prec = np.mean([c["precision"] for c in per.values()], axis=0)
     succ = np.mean([c["success"] for c in per.values()], axis=0)
     frames = int(sum(int((~np.isnan(c["errors"])).sum()) for c in per.values()))
@@ -51,31 +49,7 @@ def sequence_curves(
         "frames": frames,
     }
     if protocol == "gtot":
-        ch = seq.truth.primary_channel()
-        assert ch is not None
-        ids = list(seq.truth.boxes[ch])
-        mapping = (
-            idf1_assignment(seq.truth.boxes[ch], tracks.boxes)["mapping"] if tracks.boxes else {}
-        )
-        counts = {
-            "frames": 0,
-            "precision_counts": np.zeros(51, int),
-            "success_counts": np.zeros(51, int),
-        }
-        for g in ids:
-            # type: ignore[union-attr]
-            t = g if (g in tracks.boxes and id_rule != "assign") else mapping.get(g)
-            pred = tracks.boxes[t] if t is not None else np.full((seq.n_frames, 4), np.nan)
-            c = protocols.gtot_counts(
-                pred,
-                seq.truth.boxes.get("visible", {}).get(g),
-                seq.truth.boxes.get("infrared", {}).get(g),
-            )
-            counts["frames"] += c["frames"]  # type: ignore[operator]
-            counts["precision_counts"] = counts["precision_counts"] + np.asarray(
-                c["precision_counts"]
-            )
-            counts["success_counts"] = counts["success_counts"] + np.asarray(c["success_counts"])
+        counts = a.gtot_counts()
         out["gtot_counts"] = {
             k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in counts.items()
         }

@@ -12,11 +12,14 @@ P@20 and AUC per attribute (frames pooled, so a long episode weighs by its lengt
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from pipeline.eval.single import SUCCESS_THRESHOLDS, center_errors, ious
-from pipeline.io.results import TrackTable
-from pipeline.io.sequence import Truth
+from pipeline.eval.single import SUCCESS_THRESHOLDS
+
+if TYPE_CHECKING:
+    from pipeline.eval import Assessment
 
 
 def attribute_masks(meta: dict[str, object], n_frames: int) -> dict[int, dict[str, np.ndarray]]:
@@ -40,29 +43,16 @@ def attribute_masks(meta: dict[str, object], n_frames: int) -> dict[int, dict[st
 
 
 def attribute_counts(
-    truth: Truth,
-    tracks: TrackTable,
-    masks: dict[int, dict[str, np.ndarray]],
-    which: dict[int, int | None],
+    assessment: Assessment, masks: dict[int, dict[str, np.ndarray]]
 ) -> dict[str, dict[str, object]]:
-    """Per attribute: frames with truth carrying it, hits at 20 px, hits per success threshold.
-
-    ``which`` maps each truth id to the track scored against it (None: no track).
-    """
-    ch = truth.primary_channel()
+    """Per attribute: frames with truth carrying it, hits at 20 px, hits per success threshold,
+    read from the run's :class:`~pipeline.eval.Assessment` (its errors and IoUs per truth id)."""
     out: dict[str, dict[str, object]] = {}
-    if ch is None:
-        return out
-    for g, gt in truth.boxes[ch].items():
-        t = which.get(g)
-        pred = (
-            tracks.boxes[t] if t is not None and t in tracks.boxes else np.full(gt.shape, np.nan)
-        )
-        err = center_errors(pred, gt)
-        ov = ious(pred, gt)
+    for g in assessment.ids:
+        err, ov = assessment.errors[g], assessment.overlaps[g]
         has = ~np.isnan(err)
         for name, m in masks.get(g, {}).items():
-            sel = m[: gt.shape[0]] & has
+            sel = m[: err.shape[0]] & has
             c = out.setdefault(
                 name,
                 {
@@ -71,12 +61,10 @@ def attribute_counts(
                     "success_hits": np.zeros(SUCCESS_THRESHOLDS.size, int),
                 },
             )
-            c["frames"] = int(c["frames"]) + int(sel.sum())  # type: ignore[call-overload]
-            # type: ignore[call-overload]
+            c["frames"] = int(c["frames"]) + int(sel.sum())
             c["p20_hits"] = int(c["p20_hits"]) + int((err[sel] <= 20.0).sum())
-            c["success_hits"] = c["success_hits"] + (
-                ov[sel][None, :] > SUCCESS_THRESHOLDS[:, None]
-            ).sum(axis=1)  # type: ignore[operator]
+            hits = (ov[sel][None, :] > SUCCESS_THRESHOLDS[:, None]).sum(axis=1)
+            c["success_hits"] = np.asarray(c["success_hits"]) + hits
     return out
 
 

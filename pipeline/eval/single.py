@@ -106,6 +106,8 @@ def single_target_metrics(
     pred: np.ndarray,
     gt: np.ndarray,
     gt_other: np.ndarray | None = None,
+    err: np.ndarray | None = None,
+    ov: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Default-protocol metrics of one target.
 
@@ -118,14 +120,17 @@ def single_target_metrics(
     gt_other : (N, 4), optional
         Truth of the other channel, for MPR/MSR (per frame the smaller centre error /
         larger IoU of the two channels).
+    err, ov : (N,), optional
+        :func:`center_errors` and :func:`ious` of ``pred`` and ``gt`` where the caller has
+        them already.
 
     Returns
     -------
     dict with ``p5``, ``p20``, ``auc``, ``mean_error_px``, ``npr``, ``frames`` (frames
     with truth), ``frames_without_output``, and ``mpr``, ``msr`` when ``gt_other`` is given.
     """
-    err = center_errors(pred, gt)
-    ov = ious(pred, gt)
+    err = center_errors(pred, gt) if err is None else err
+    ov = ious(pred, gt) if ov is None else ov
     nerr = normalized_center_errors(pred, gt)
     valid = ~np.isnan(err)
     finite = err[valid & np.isfinite(err)]

@@ -49,7 +49,9 @@ class AssociationConfig(Section):
     use_state : bool
         Use Λ_S (False: image only, still gated); default True.
     associator : str
-        ``hungarian`` (default) or ``chnn`` where the CHNN associator is installed.
+        ``hungarian`` (default: the optimum of the global assignment, exactly) or ``chnn``
+        (the competitive Hopfield network of the CHNN papers, an energy descent that reaches
+        the optimum on most frames and is the papers' method).
     confirm_hits : int
         A new track is confirmed after this many detections (M of M-of-N), >= 1; default 3.
     confirm_window : int
@@ -211,17 +213,5 @@ def hungarian(cost: np.ndarray, miss_cost: np.ndarray, new_cost: np.ndarray) -> 
 
 
 Associator = Callable[[np.ndarray, np.ndarray, np.ndarray], Assignment]
-ASSOCIATORS: dict[str, Associator] = {"hungarian": hungarian}
-
-
-def get_associator(name: str) -> Associator:
-    """The associator registered as ``name`` (``hungarian``; ``chnn`` once its module is
-    loaded)."""
-    if name == "chnn" and "chnn" not in ASSOCIATORS:
-        import pipeline.stages.chnn  # noqa: F401  (registers itself)
-    try:
-        return ASSOCIATORS[name]
-    except KeyError:
-        raise ValueError(
-            f"unknown associator {name!r}; available: {', '.join(ASSOCIATORS)}"
-        ) from None
+"""What an associator is: ``(cost (N, M), miss_cost (N,), new_cost (M,)) -> Assignment``
+(:func:`hungarian`, :func:`pipeline.stages.chnn.chnn_associator`)."""

@@ -20,7 +20,7 @@ pseudo-measurements ("no measurement for target i"), rows N..N+M-1 the M measure
 :func:`chnn` returns the assignment, the energy after every column update and the sweeps;
 :func:`hungarian_reference` solves the same cost exactly, so the energy gap to the
 optimum can be reported per frame. :func:`chnn_associator` adapts it to the associator
-interface of ``pipeline.stages.association`` (registered as ``chnn``).
+interface of ``pipeline.stages.association`` (``association.associator = chnn``).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from pipeline.stages.association import ASSOCIATORS, IMPOSSIBLE, Assignment
+from pipeline.stages.association import IMPOSSIBLE, Assignment
 
 BIG = 1e9
 
@@ -184,6 +184,3 @@ def chnn_associator(cost: np.ndarray, miss_cost: np.ndarray, new_cost: np.ndarra
         total,
         {"energies": res.energies, "sweeps": res.sweeps, "gap_to_optimum": mine - ref_cost},
     )
-
-
-ASSOCIATORS["chnn"] = chnn_associator

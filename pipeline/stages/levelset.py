@@ -603,7 +603,7 @@ def _band_iterations(
 
 @dataclass(frozen=True)
 class EvolveIter:
-    """State passed to ``iter_callback`` at every stopping-rule check."""
+    """One stopping-rule check of :func:`evolve`, as ``iter_callback`` receives it."""
 
     iteration: int
     area_px: int
@@ -639,7 +639,11 @@ def evolve(
     warm : bool
         Use the warm iteration cap.
     iter_callback : callable, optional
-        Called with an :class:`EvolveIter` at every check.
+        Called with an :class:`EvolveIter` for every stopping-rule check the evolution made
+        (every ``check_every`` iterations: the iteration and the inside area then), in order,
+        once the evolution has returned: the iterations run in one compiled call, which keeps
+        no Python in its loop, so the history is handed over afterwards. It sees what a
+        callback at each check would see, and cannot stop the evolution.
     """
     if phi0.shape != em.g.shape:
         raise ValueError(

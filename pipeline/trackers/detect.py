@@ -40,7 +40,13 @@ import numpy as np
 from pipeline.io.sequence import FramePair
 from pipeline.io.sequence import Sequence as FrameSequence
 from pipeline.stages import kalman
-from pipeline.stages.association import AssociationConfig, get_associator, state_log_likelihoods
+from pipeline.stages.association import (
+    AssociationConfig,
+    Associator,
+    hungarian,
+    state_log_likelihoods,
+)
+from pipeline.stages.chnn import chnn_associator
 from pipeline.stages.detection import (
     Background,
     DetectionConfig,
@@ -61,6 +67,9 @@ from pipeline.types import (
     TargetResult,
     TargetStatus,
 )
+
+ASSOCIATORS: dict[str, Associator] = {"hungarian": hungarian, "chnn": chnn_associator}
+"""The global assignment of ``association.associator``."""
 
 
 @dataclass(frozen=True)
@@ -249,7 +258,7 @@ class DetectAndAssociate:
         miss = np.full(len(state.tracks), -math.log(1.0 - a.detection_probability))
         new = np.full(len(regions), -math.log(a.false_alarm_probability))
         finite = np.where(np.isfinite(cost), cost, 1e9)
-        assignment = get_associator(a.associator)(finite, miss, new)
+        assignment = ASSOCIATORS[a.associator](finite, miss, new)
         timing["association"] = time.perf_counter() - t2
         return FrameMatch(
             grey,

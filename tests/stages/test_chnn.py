@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pipeline.stages import kalman
-from pipeline.stages.association import get_associator, hungarian
+from pipeline.stages.association import hungarian
 from pipeline.stages.chnn import (
     BIG,
     chnn,
@@ -91,7 +91,9 @@ def test_associator_interface_matches_hungarian_and_reports_the_gap():
         h.cost
     )
     assert a.details["gap_to_optimum"] == pytest.approx(0.0) and a.details["sweeps"] >= 1
-    assert get_associator("chnn") is chnn_associator
+    from pipeline.trackers.detect import ASSOCIATORS
+
+    assert ASSOCIATORS["chnn"] is chnn_associator
     assert chnn_associator(
         np.zeros((0, 2)), np.zeros(0), np.full(2, 1.0)
     ).unmatched_detections == (0, 1)
