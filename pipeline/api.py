@@ -130,7 +130,13 @@ class Tracker:
 
 class DualTracker(Tracker):
     """The dual-channel tracker (``dual``): colour mean shift, IR contour, correlation filter (see
-    :class:`Tracker`).
+    :class:`Tracker`, whose example drives it).
+
+    Parameters
+    ----------
+    config : PipelineConfig, optional
+        Its section is ``config.dual``, one sub-section per part; default ``PipelineConfig()``.
+        :meth:`paper` is the paper's composition.
 
     Examples
     --------
@@ -151,20 +157,83 @@ class DualTracker(Tracker):
 
 
 class MeanShiftTracker(Tracker):
-    """Kernel-weighted colour histogram mean shift (``meanshift``)."""
+    """Kernel-weighted colour histogram mean shift (``meanshift``; see :class:`Tracker`).
+
+    Parameters
+    ----------
+    config : PipelineConfig, optional
+        Its section is ``config.meanshift``; default ``PipelineConfig()``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> def frames(x):  # a warm red square on a grey ground
+    ...     vis = np.full((120, 160, 3), 90, np.uint8)
+    ...     ir = np.full((120, 160), 60, np.uint8)
+    ...     vis[40:80, x:x + 20] = (40, 40, 200)
+    ...     ir[40:80, x:x + 20] = 200
+    ...     return vis, ir
+    >>> trk = MeanShiftTracker()
+    >>> _ = trk.start(frames(60), [(60, 40, 20, 40)])
+    >>> abs(trk.step(frames(63)).targets[0].box.x - 63) < 1.5
+    True
+    """
 
     default_name = "meanshift"
 
 
 class KalmanCamShiftTracker(Tracker):
-    """CamShift from a Kalman prediction with graded occlusion (``kalman-camshift``)."""
+    """CamShift from a Kalman prediction with graded occlusion (``kalman-camshift``; see
+    :class:`Tracker`).
+
+    Parameters
+    ----------
+    config : PipelineConfig, optional
+        Its section is ``config.kalman_camshift``; default ``PipelineConfig()``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> def frames(x):  # a warm red square on a grey ground
+    ...     vis = np.full((120, 160, 3), 90, np.uint8)
+    ...     ir = np.full((120, 160), 60, np.uint8)
+    ...     vis[40:80, x:x + 20] = (40, 40, 200)
+    ...     ir[40:80, x:x + 20] = 200
+    ...     return vis, ir
+    >>> trk = KalmanCamShiftTracker()
+    >>> _ = trk.start(frames(60), [(60, 40, 20, 40)])
+    >>> result = trk.step(frames(62))
+    >>> result.targets[0].status.value, abs(result.targets[0].box.cx - 72) < 2
+    ('tracking', True)
+    """
 
     default_name = "kalman-camshift"
 
 
 class DetectTracker(Tracker):
-    """Targets found by the detector and associated globally (``detect``); ``start`` takes no
-    boxes."""
+    """Targets found by the detector and associated globally (``detect``; see
+    :class:`Tracker`): ``start`` takes no boxes.
+
+    Parameters
+    ----------
+    config : PipelineConfig, optional
+        Its section is ``config.detect``; default ``PipelineConfig()``.
+
+    Examples
+    --------
+    A warm target on a flat infrared ground, found without a box and confirmed after three
+    detections:
+
+    >>> import numpy as np
+    >>> def frame(x):
+    ...     ir = np.full((120, 160), 60, np.uint8)
+    ...     ir[40:80, x:x + 14] = 200
+    ...     return None, ir
+    >>> trk = DetectTracker()
+    >>> results = trk.track([frame(40 + 2 * k) for k in range(6)])
+    >>> [r.targets[0].status.value for r in results[:4]]
+    ['tentative', 'tentative', 'tracking', 'tracking']
+    """
 
     default_name = "detect"
 

@@ -319,7 +319,9 @@ def format_table(rows: list[dict[str, object]]) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
     def f(v: object, nd: int = 3) -> str:
-        return f"{v:.{nd}f}" if isinstance(v, float) else ("" if v is None else str(v))
+        if isinstance(v, float):
+            return f"{v:.{nd}f}" if v == v else "-"
+        return "" if v is None else str(v)
 
     failed = [r for r in rows if "failed" in r]
     for r in rows:

@@ -64,6 +64,12 @@ class PipelineConfig:
         OpenCV's MIL, CSRT and KCF peers (and the channel CamShift runs on).
     rerun : RerunConfig
         The .rrd recording.
+
+    Examples
+    --------
+    >>> cfg = PipelineConfig()
+    >>> cfg.dual.decider.psr_confident, cfg.dual.groups is None, cfg.detect.association.max_misses
+    (7.0, True, 1)
     """
 
     dual: DualConfig = field(default_factory=DualConfig)
@@ -283,7 +289,27 @@ def parse_set(items: list[str]) -> dict[str, Any]:
 
 
 def load_config(path: str | Path | None = None, sets: list[str] | None = None) -> PipelineConfig:
-    """Defaults, then the TOML file ``path``, then the ``--set`` items.
+    """The configuration: the defaults, then the TOML file ``path``, then the ``--set`` items.
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        A TOML file whose tables follow the tree (``[dual.decider]``, ``[detect.association]``;
+        ``appearance = "none"`` in ``[dual]`` leaves a part out).
+    sets : list of str, optional
+        ``path.param=value`` items, applied after the file, a later one winning.
+
+    Returns
+    -------
+    PipelineConfig
+        Every value coerced to its field's type and checked against its declared range.
+
+    Raises
+    ------
+    ConfigError
+        An unreadable or invalid file, an unknown section or parameter, a value of the wrong
+        type or out of range (the message names its full path: ``dual.decider.psr_confident must
+        be >= 0; got -1``).
 
     Examples
     --------

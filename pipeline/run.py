@@ -73,7 +73,13 @@ def track(
     init : list of BBox, ``(x, y, w, h)`` or ``"x,y,w,h"``, optional
         The targets' boxes in frame 1 (ids 1..N); default the sequence's own first-frame truth.
     config : PipelineConfig, optional
-        Every stage's parameters; default ``PipelineConfig()``.
+        Every tracker's parameters; default ``PipelineConfig()``.
+
+    Returns
+    -------
+    list of FrameResult
+        One per frame: every target's box, status, decision and diagnostics, the frame's
+        events and the seconds per stage.
 
     Examples
     --------
@@ -99,7 +105,52 @@ def track(
 
 @dataclass
 class RunOptions:
-    """Options of ``dualtrack track`` (see ``dualtrack track --help``)."""
+    """Options of ``dualtrack track`` (see ``dualtrack track --help``).
+
+    Parameters
+    ----------
+    tracker : str
+        An engine of ``dualtrack trackers``; default ``dual``.
+    out_dir : Path, optional
+        The run folder; default ``runs/<sequence name>``.
+    init : list of str, optional
+        ``"x,y,w,h"`` boxes of frame 1 (0-based px; ids 1..N), as ``--init``.
+    init_file : Path, optional
+        A file of initial boxes (``--init-file``).
+    detect : bool
+        Find the initial targets with the detector (``--detect``).
+    channel : {"visible", "infrared"}, optional
+        What a one-channel folder holds, or the one channel of a two-channel folder to use.
+    align : {"none", "resize"}
+        Scale infrared frames to the visible size when they differ.
+    gt_base : float, optional
+        The ground truth's coordinate base (0 or 1), overriding the layout's.
+    config_path : Path, optional
+        A TOML configuration file (``--config``).
+    sets : list of str
+        ``path.param=value`` items (``--set``), applied after the file.
+    rrd, plots : bool
+        Write the recording and the plots; default True.
+    protocol : str
+        The evaluation protocol of ``summary.json``'s metrics; default ``default``.
+    force : bool
+        Overwrite a non-empty run folder (only the files a run writes).
+    progress : bool, optional
+        A progress bar (default: on a terminal only).
+    stop_frame : int, optional
+        Stop after this frame (``--frames``).
+    config : PipelineConfig, optional
+        A resolved configuration instead of ``config_path`` and ``sets``.
+    threads : bool
+        Decode and write on threads beside the tracker (default); False does all three in
+        turn on one thread, with the same results.
+
+    Examples
+    --------
+    >>> opts = RunOptions(tracker="meanshift", sets=["meanshift.search.max_iterations=30"])
+    >>> opts.tracker, opts.rrd
+    ('meanshift', True)
+    """
 
     tracker: str = DEFAULT_TRACKER
     out_dir: Path | None = None
@@ -123,6 +174,9 @@ class RunOptions:
 
 @dataclass
 class RunResult:
+    """What :func:`run_track` did: the run folder, ``summary.json``'s content, whether every
+    frame was done, and each target's boxes (frame-indexed, NaN where it was not reported)."""
+
     out_dir: Path
     summary: dict[str, object]
     complete: bool
@@ -172,7 +226,19 @@ def run_track(
         The options of ``dualtrack track``; or give them as keywords (``out_dir=...,
         tracker=...``).
     config : PipelineConfig, optional
-        Every stage's parameters (instead of ``RunOptions.config_path`` / ``sets``).
+        Every tracker's parameters (instead of ``RunOptions.config_path`` / ``sets``).
+
+    Returns
+    -------
+    RunResult
+        The run folder, ``summary.json``'s content (``complete`` false for a run stopped by a
+        signal or a bad frame, ``error`` saying why), and each target's boxes.
+
+    Raises
+    ------
+    InputError
+        Bad input before the first frame: no such folder, no initial target, a bad option or
+        configuration, a run folder that is not empty without ``force``.
 
     Examples
     --------

@@ -39,6 +39,13 @@ Points = NDArray[np.float64]
 class BBox:
     """Axis-aligned box ``(x, y, w, h)`` in continuous 0-based px (see module doc).
 
+    Parameters
+    ----------
+    x, y : float
+        The top-left corner, px (the corner of the top-left pixel is (0, 0)).
+    w, h : float
+        Width and height, px; the box spans ``[x, x + w) x [y, y + h)``.
+
     Examples
     --------
     >>> b = BBox.from_center(50, 40, 20, 10)
@@ -139,7 +146,17 @@ class BBox:
 
 
 class TargetStatus(enum.StrEnum):
-    """Per-target status; the values are the names docs/formats.md lists."""
+    """Per-target status; the values are the names docs/formats.md lists.
+
+    ``tentative`` (a detected target not yet confirmed), ``tracking``, ``occluded-partial``,
+    ``occluded-severe`` (coasting on its motion), ``merged`` (inside a group of targets in
+    mutual occlusion), ``lost``.
+
+    Examples
+    --------
+    >>> TargetStatus("occluded-partial").is_occluded, TargetStatus.LOST.is_reported
+    (True, False)
+    """
 
     TENTATIVE = "tentative"
     TRACKING = "tracking"
@@ -227,6 +244,12 @@ class TargetResult:
     decision : str
         The tracker's decision for this frame and why, ``case:why``
         (``contour:contour-and-appearance``); empty for trackers without one.
+
+    Examples
+    --------
+    >>> r = TargetResult(1, BBox(10, 20, 30, 40), TargetStatus.TRACKING, "levelset")
+    >>> r.status.is_reported, r.replace(status=TargetStatus.LOST).status.value
+    (True, 'lost')
     """
 
     id: int
@@ -273,7 +296,27 @@ class FrameTruth:
 
 @dataclass(frozen=True)
 class FrameResult:
-    """Everything a tracker reports for one frame."""
+    """Everything a tracker reports for one frame.
+
+    Parameters
+    ----------
+    frame : int
+        The frame number, from 1.
+    targets : tuple of TargetResult
+        One per target the tracker holds this frame.
+    events : tuple of Event
+        What happened (merges, splits, occlusions, losses, re-acquisitions, ...).
+    stage_seconds : mapping of str to float
+        Seconds spent per stage this frame.
+    diagnostics : mapping of str to array
+        Optional images (a detector's maps, ...).
+
+    Examples
+    --------
+    >>> res = FrameResult(3, (TargetResult(2, BBox(0, 0, 5, 5), TargetStatus.TRACKING, "x"),))
+    >>> res.target(2).box.center, res.target(9)
+    ((2.5, 2.5), None)
+    """
 
     frame: int
     targets: tuple[TargetResult, ...]

@@ -294,7 +294,55 @@ def evaluate_files(
     mot_rule: str = "trackeval",
     **open_kw: object,
 ) -> dict[str, object]:
-    """``dualtrack evaluate SEQ_DIR TRACKS_CSV``: open the sequence, read the results, score."""
+    """``dualtrack evaluate SEQ_DIR TRACKS_CSV``: open the sequence, read the results, score them.
+
+    Exported as ``pipeline.evaluate``.
+
+    Parameters
+    ----------
+    seq_dir : str or Path
+        The sequence folder, with its ground truth.
+    tracks_csv : str or Path
+        A results file: MOTChallenge rows ``frame,id,x,y,w,h,...`` (1-based), as ``tracks.csv``
+        of a run folder, or one ``x,y,w,h`` per frame.
+    protocol : {"default", "gtot", "rgbt234", "lasher", "vtuav"}
+        Our rules, or a toolkit's own (module doc).
+    id_rule : {"auto", "truth", "assign"}
+        Which track is scored against which truth id (module doc).
+    mot_rule : {"trackeval", "motmetrics"}
+        The CLEAR matching rule of the many-target scores.
+    **open_kw
+        Passed to :func:`~pipeline.io.sequence.open_sequence` (``channel``, ``align``,
+        ``gt_base``).
+
+    Returns
+    -------
+    dict
+        The ``evaluate --json`` object: ``p5``, ``p20``, ``auc``, ``mean_error_px``, ``npr``
+        (``mpr``, ``msr`` with truth in both channels), the many-target scores with several
+        targets, ``targets`` per truth id, and ``warnings`` about the input when there are any.
+
+    Raises
+    ------
+    InputError
+        No such folder, no ground truth, or an unreadable results file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from pipeline import evaluate, synthesize_random
+    >>> scene = synthesize_random(Path(tempfile.mkdtemp()) / "s", seed=3, targets=1, frames=30,
+    ...                           progress=False)
+    >>> truth = (scene / "visible.txt").read_text().splitlines()  # x,y,w,h per frame, 0-based
+    >>> rows = [f"{k + 1},1," + ",".join(str(float(v) + (1 if i < 2 else 0))
+    ...         for i, v in enumerate(line.split(","))) + ",1,-1,-1,-1"
+    ...         for k, line in enumerate(truth)]  # the truth itself, as 1-based MOT rows
+    >>> _ = (scene / "perfect.csv").write_text(chr(10).join(rows))
+    >>> m = evaluate(scene, scene / "perfect.csv")
+    >>> m["p20"], m["auc"] > 0.95
+    (1.0, True)
+    """
     seq = open_sequence(seq_dir, **open_kw)  # type: ignore[arg-type]
     if not seq.truth.has_truth:
         from pipeline.errors import InputError

@@ -67,10 +67,26 @@ CHANNELS = ("visible", "infrared")
 class FramePair:
     """One registered frame pair as the trackers see it.
 
-    ``visible`` is ``(H, W, 3)`` uint8 BGR, ``infrared`` ``(H, W)`` uint8 (normalized);
-    either may be None in a one-channel sequence. ``infrared_raw`` is the IR frame as
-    stored (uint16 for 16-bit sensors). ``*_encoded`` are the source bytes when the frame
-    came from a JPEG/PNG file that still matches the array (None otherwise).
+    Parameters
+    ----------
+    index : int
+        The frame number, from 1.
+    visible : (H, W, 3) uint8 array or None
+        The visible frame, BGR; None in an infrared-only sequence.
+    infrared : (H, W) uint8 array or None
+        The infrared frame, normalized to 8 bits; None in a visible-only sequence.
+    infrared_raw : (H, W) array, optional
+        The IR frame as stored (uint16 for 16-bit sensors).
+    visible_encoded, infrared_encoded : EncodedFrame, optional
+        The source bytes when the frame came from a JPEG/PNG file that still matches the
+        array (the recording passes them through).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fp = FramePair(1, np.zeros((48, 64, 3), np.uint8), np.zeros((48, 64), np.uint8))
+    >>> fp.shape, fp.channels
+    ((48, 64), ('visible', 'infrared'))
     """
 
     index: int
@@ -395,11 +411,27 @@ def open_sequence(
     gt_base : float, optional
         Override of the layout's ground-truth coordinate base (0 or 1).
 
+    Returns
+    -------
+    Sequence
+        The folder's frames (read lazily: :meth:`Sequence.frames`, :meth:`Sequence.frame`),
+        its channels, layout, frame count and truth (0-based boxes per channel and id).
+
     Raises
     ------
     InputError
         Missing folder, unrecognised layout, no frames, unreadable first frame,
         channels with different frame counts or sizes, malformed ground truth.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pipeline import open_sequence, synthesize
+    >>> seq = open_sequence(synthesize("crossing2", tempfile.mkdtemp() + "/c", progress=False))
+    >>> seq.layout, seq.channels, sorted(seq.truth.primary())
+    ('rgbt234', ('visible', 'infrared'), [1, 2])
+    >>> open_sequence(seq.path, channel="infrared").channels
+    ('infrared',)
     """
     root = Path(path)
     if not root.exists():
