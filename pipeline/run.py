@@ -351,7 +351,7 @@ def run_track(
         if not has_truth:
             return {}
         done = stats.frames
-        truth = _truncate(seq, done)
+        truth = seq.truth.truncated(done)
         table = TrackTable({k: v[:done] for k, v in boxes.items()}, {})
         id_rule = "assign" if detected_ids else "truth"  # detection-made ids are arbitrary
         assessment = Assessment(truth, table, done, id_rule)  # the run's one evaluation
@@ -381,16 +381,3 @@ def run_track(
     res = run_job(job)
     st = res.stats
     return RunResult(out, res.summary, res.complete, st.interrupted, st.error, boxes, st.crash)
-
-
-def _truncate(seq: Sequence, n: int):
-    from pipeline.io.sequence import Truth
-
-    t = seq.truth
-    return Truth(
-        {c: {i: b[:n] for i, b in d.items()} for c, d in t.boxes.items()},
-        {i: v[:n] for i, v in t.visibility.items()},
-        t.files,
-        t.multi,
-        {i: b[:n] for i, b in t.distractors.items()},
-    )

@@ -249,3 +249,21 @@ def test_rrd_holds_the_truth_iou_and_failures(scene, tmp_path):
     assert vals[first_fail - 1] == 0.0
     ev = texts(store, "/events")
     assert any(f == first_fail and t.startswith("[failure] T1") for f, t in ev)
+
+
+def test_the_centre_error_plot_draws_sparse_truth(tmp_path):
+    """Truth every 10th frame: the curve goes through those frames (a line with markers), not
+    isolated points between NaNs that draw nothing."""
+    import cv2
+
+    from pipeline.sinks.plots import _color, write_plots
+
+    n = 200
+    errors = np.full(n, np.nan)
+    errors[::10] = np.linspace(2, 30, n // 10)
+    curves = {1: {"errors": errors, "precision": np.linspace(0, 1, 51), "success": np.ones(21)}}
+    write_plots(tmp_path, curves, "sparse")
+    img = cv2.imread(str(tmp_path / "center_error.png"))[..., ::-1].astype(int)
+    rgb = np.array(_color(0)) * 255
+    drawn = (np.abs(img - rgb).sum(axis=2) < 40).sum()
+    assert drawn > 300, drawn  # pixels of T1's colour: the line and its markers

@@ -104,9 +104,15 @@ class Assessment:
             boxes = mot.drop_distractor_matches(self.gt, tracks.boxes, truth.distractors)
             tracks = dataclasses.replace(tracks, boxes=boxes)
         self.tracks = tracks
-        self.data = mot.sequence_data(self.gt, tracks.boxes, n_frames)
+        # the many-target scores count the annotated frames only: with sparse truth (VTUAV: every
+        # 10th frame) a track's box on a frame nobody annotated is neither right nor wrong
+        keep = truth.annotated(n_frames)
+        self.mot_gt = {g: b[:n_frames][keep] for g, b in self.gt.items()}
+        self.mot_tracks = {t: b[:n_frames][keep] for t, b in tracks.boxes.items()}
+        self.mot_frames = int(keep.sum())
+        self.data = mot.sequence_data(self.mot_gt, self.mot_tracks, self.mot_frames)
         self.id_info = (
-            mot.idf1(self.gt, tracks.boxes, data=self.data)
+            mot.idf1(self.mot_gt, self.mot_tracks, data=self.data)
             if tracks.boxes
             else {"idf1": 0.0, "idp": 0.0, "idr": 0.0, "mapping": {}}
         )
@@ -189,15 +195,17 @@ class Assessment:
         return {k: v for k, v in pooled.items() if k != "frames"}
 
     def _many(self, mot_rule: str) -> dict[str, object]:
-        """CLEAR-MOT, IDF1, purity and HOTA."""
-        gt, boxes = self.gt, self.tracks.boxes
-        fm = mot.match_frames(gt, boxes, self.n_frames, rule=mot_rule, data=self.data)
+        """CLEAR-MOT, IDF1, purity and HOTA, on the annotated frames."""
+        gt, boxes, n = self.mot_gt, self.mot_tracks, self.mot_frames
+        fm = mot.match_frames(gt, boxes, n, rule=mot_rule, data=self.data)
         out: dict[str, object] = dict(mot.clear_mot(fm))
         out["mot_rule"] = mot_rule
         out["idf1"] = self.id_info["idf1"]
         out["idp"], out["idr"] = self.id_info["idp"], self.id_info["idr"]
         out["purity"] = mot.purity_matrix(gt, boxes, fm)
-        out.update(mot.hota(gt, boxes, self.n_frames, data=self.data))
+        out.update(mot.hota(gt, boxes, n, data=self.data))
+        if n < self.n_frames:
+            out["mot_frames"] = n  # the annotated frames the scores above count
         return out
 
     def curves(self) -> dict[int, dict[str, np.ndarray]]:

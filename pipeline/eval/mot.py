@@ -202,8 +202,7 @@ def match_frames(
     tpos_all = {t: k for k, t in enumerate(d.track_ids)}
     for gi, ti, sim in d.frames:
         pairs: list[tuple[int, int, float]] = []
-        if gi.size == 0 or ti.size == 0:
-            prev_step[:] = -1
+        if gi.size == 0 or ti.size == 0:  # TrackEval skips the frame: its matches carry over
             out.append(pairs)
             continue
         if rule == "trackeval":

@@ -115,6 +115,9 @@ class Truth:
     For a MOTChallenge ``gt.txt`` both channels share the same table (registered frames)
     and ``visibility[id]`` holds the visibility column; ``distractors[id]`` ``(N, 4)`` are its
     rows of a distractor class (objects that are not targets, see ``parse_mot_truth``).
+    ``sparse_every`` says which frames were annotated: frames 1, 1 + every, ... (VTUAV: 10); a
+    NaN row on an annotated frame means the target is absent there, on another frame only that
+    nobody annotated it.
     """
 
     boxes: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)
@@ -122,6 +125,30 @@ class Truth:
     files: dict[str, str] = field(default_factory=dict)
     multi: bool = False
     distractors: dict[int, np.ndarray] = field(default_factory=dict)
+    sparse_every: int = 1
+
+    def annotated(self, n_frames: int) -> np.ndarray:
+        """``(n_frames,)`` bool: the frames that were annotated (all of them for dense truth).
+
+        Examples
+        --------
+        >>> Truth(sparse_every=10).annotated(25).nonzero()[0].tolist()  # frames 1, 11, 21
+        [0, 10, 20]
+        """
+        mask = np.zeros(n_frames, bool)
+        mask[:: self.sparse_every] = True
+        return mask
+
+    def truncated(self, n: int) -> Truth:
+        """The truth of the first ``n`` frames."""
+        return Truth(
+            {c: {i: b[:n] for i, b in d.items()} for c, d in self.boxes.items()},
+            {i: v[:n] for i, v in self.visibility.items()},
+            self.files,
+            self.multi,
+            {i: b[:n] for i, b in self.distractors.items()},
+            self.sparse_every,
+        )
 
     @property
     def has_truth(self) -> bool:
@@ -545,6 +572,14 @@ def open_sequence(
             k: v * np.array([sx, sy, sx, sy]) for k, v in truth.boxes["infrared"].items()
         }
     init_file = root / "init.txt" if (root / "init.txt").is_file() else None
+    if init_file is not None and not truth.has_truth:
+        lines = _box_lines(init_file)
+        if lines > 1:  # RGBT234's init.txt is one target's truth, a box per frame
+            warnings.append(
+                f"{init_file} has {lines} boxes: read as one target's box per frame (the RGBT234 "
+                "convention), started from the first; to start several targets, give the file "
+                "with --init-file (one x,y,w,h per target)"
+            )
     return Sequence(
         root,
         spec.name,
@@ -557,6 +592,14 @@ def open_sequence(
         read_scene_json(root, warnings),
         tuple(warnings),
     )
+
+
+def _box_lines(path: Path) -> int:
+    """Non-empty lines of a box file (0 when it cannot be read: the reader says why later)."""
+    try:
+        return sum(1 for line in path.read_text(errors="replace").splitlines() if line.strip())
+    except OSError:
+        return 0
 
 
 def read_scene_json(folder: Path, warnings: list[str] | None = None) -> dict[str, object]:
@@ -592,6 +635,22 @@ def _percentile_norm(src: FrameSource, samples: int = 16) -> IrNormalization:
     return IrNormalization("percentile", float(lo), float(hi))
 
 
+def _truth_files(root: Path, spec: _Spec) -> list[tuple[str, str, str, float, int]]:
+    """``(channel, file, form, coordinate base, annotated every)`` of each single-target truth
+    file of the layout that is there; a video pair takes any file the folder layouts know, with
+    that layout's base and sparseness (VTUAV's ``rgb.txt`` / ``ir.txt``: every 10th frame)."""
+    specs = [spec]
+    if spec.name == "video-pair":
+        specs = [*_PAIR_LAYOUTS, _ONE_CHANNEL_LAYOUTS[0]]
+    out, seen = [], set()
+    for s in specs:
+        for ch, (fname, form) in s.gt.items():
+            if ch not in seen and (root / fname).is_file():
+                seen.add(ch)
+                out.append((ch, fname, form, s.base, s.sparse_every))
+    return out
+
+
 def _load_truth(
     root: Path,
     spec: _Spec,
@@ -617,42 +676,28 @@ def _load_truth(
             multi=True,
             distractors=mt.distractors,
         )
-    base = spec.base if gt_base is None else gt_base
     boxes: dict[str, dict[int, np.ndarray]] = {}
     files: dict[str, str] = {}
-    gt = dict(spec.gt)
-    if spec.name == "video-pair":  # any single-target file the other layouts know
-        for s in _PAIR_LAYOUTS:
-            for ch, (fname, form) in s.gt.items():
-                if (root / fname).is_file():
-                    gt.setdefault(ch, (fname, form))
-        if (root / "groundtruth_rect.txt").is_file():
-            gt.setdefault("both", ("groundtruth_rect.txt", "xywh"))
-            base = 1.0 if gt_base is None else gt_base
-    for ch, (fname, form) in gt.items():
+    every = 1
+    for ch, fname, form, base, sparse in _truth_files(root, spec):
         f = root / fname
-        if not f.is_file():
-            continue
-        arr = parse_box_file(f, form, base)
-        want = -(-n // spec.sparse_every)
+        arr = parse_box_file(f, form, base if gt_base is None else gt_base)
+        want = -(-n // sparse)
         if arr.shape[0] != want:
-            every = f" (one every {spec.sparse_every} frames)" if spec.sparse_every > 1 else ""
+            one_every = f" (one every {sparse} frames)" if sparse > 1 else ""
             fate = (
                 "the extra rows are ignored"
                 if arr.shape[0] > want
                 else "the frames past them have no truth"
             )
             warnings.append(
-                f"{f} has {arr.shape[0]} rows for {n} frames{every}, {want} expected; {fate}"
+                f"{f} has {arr.shape[0]} rows for {n} frames{one_every}, {want} expected; {fate}"
             )
-        arr = (
-            expand_sparse(arr, n, spec.sparse_every)
-            if spec.sparse_every > 1
-            else fit_length(arr, n)
-        )
+        arr = expand_sparse(arr, n, sparse) if sparse > 1 else fit_length(arr, n)
+        every = max(every, sparse)
         targets = ("visible", "infrared") if ch == "both" else (ch,)
         for c in targets:
             if c in sources:
                 boxes[c] = {1: arr}
                 files[c] = str(f)
-    return Truth(boxes, {}, files, multi=False)
+    return Truth(boxes, {}, files, multi=False, sparse_every=every)

@@ -88,3 +88,37 @@ def test_evaluate_multi_keys_and_id_mapping():
         10,
         20,
     )  # ids differ: scored through the IDF1 assignment
+
+
+def test_a_frame_without_tracks_keeps_the_previous_matches_as_trackeval_does():
+    """TrackEval's CLEAR skips a frame with truth but no track box, keeping the last frame's
+    matches: the continuation after it prefers the same track (no switch) although another
+    overlaps the target better."""
+    nan = [np.nan] * 4
+    gt = {1: np.array([[0, 0, 10, 10]] * 3, float)}
+    tr = {
+        7: np.array([[0, 0, 10, 10], nan, [3, 0, 10, 10]], float),  # IoU 0.54 in frame 3
+        8: np.array([nan, nan, [1, 0, 10, 10]], float),  # IoU 0.82 in frame 3
+    }
+    m = clear_mot(match_frames(gt, tr, 3))
+    assert m["id_switches"] == 0 and m["misses"] == 1 and m["false_positives"] == 1
+
+
+def test_sparse_truth_is_scored_on_the_annotated_frames_only():
+    """With truth every 10th frame, the many-target scores equal those of the annotated frames
+    alone (TrackEval given only those frames' rows): a box on another frame is no false
+    positive."""
+    rng = np.random.default_rng(0)
+    n = 31
+    dense = {g: np.cumsum(rng.normal(0, 2, (n, 4)), axis=0) + [40 * g, 50, 20, 30] for g in (1, 2)}
+    tracks = {t: dense[t] + rng.normal(0, 1, (n, 4)) for t in (1, 2)}
+    tracks[3] = dense[1] + [200, 0, 0, 0]  # a false track, on every frame
+    sparse = {g: np.where(np.arange(n)[:, None] % 10 == 0, b, np.nan) for g, b in dense.items()}
+    truth = Truth({"visible": sparse}, multi=True, sparse_every=10)
+    got = evaluate(truth, TrackTable(tracks, {}), n)
+    keep = np.arange(n) % 10 == 0
+    only = Truth({"visible": {g: b[keep] for g, b in dense.items()}}, multi=True)
+    want = evaluate(only, TrackTable({t: b[keep] for t, b in tracks.items()}, {}), int(keep.sum()))
+    assert got["mot_frames"] == 4 and got["false_positives"] < 10  # not the false track's 31 rows
+    for k in ("mota", "motp", "idf1", "hota", "id_switches", "false_positives", "misses"):
+        assert got[k] == pytest.approx(want[k]), k

@@ -135,13 +135,14 @@ def test_clear_and_idf1_equal_motmetrics_with_its_rule(motmetrics, case):
 
 
 def test_the_two_clear_rules_differ_on_a_gap(motmetrics):
-    """Missed in frame 2, then covered by its old track A (IoU 0.6) and by track B (IoU 1):
-    motmetrics carries the match to A across the gap (no switch, MOTP 0.8), TrackEval only from the
-    previous frame (B: a switch, MOTP 1)."""
+    """Missed in frame 2 (its old track A beside it, IoU 0.11), then covered by A (IoU 0.6) and
+    by track B (IoU 1): motmetrics carries the match to A across the miss (no switch, MOTP 0.8),
+    TrackEval only from the previous frame (B: a switch, MOTP 1). (A frame with no track box at
+    all is skipped by TrackEval and keeps its matches: ``test_mot``.)"""
     n = 3
     g = {1: _walk(n, 10, 0.0)}
     a = g[1].copy()
-    a[1] = np.nan
+    a[1] += [8, 0, 0, 0]  # beside the target: no match in frame 2
     a[2] += [5, 0, 0, 0]  # IoU 15/25 = 0.6
     b = np.full((n, 4), np.nan)
     b[2] = g[1][2]

@@ -5,7 +5,7 @@ import pytest
 from pipeline.errors import InputError
 from pipeline.io.init import parse_box_arg, resolve_init
 from pipeline.io.sequence import open_sequence
-from pipeline.types import BBox
+from pipeline.types import BBox, InitTarget
 from tests.conftest import write_boxes, write_frames
 
 
@@ -57,3 +57,14 @@ def test_no_truth_no_init_is_a_clear_error(tmp_path):
     write_frames(root / "infrared", 2, color=False)
     with pytest.raises(InputError, match=r"no initial target .* give --init"):
         resolve_init(open_sequence(root))
+
+
+def test_an_init_file_of_several_boxes_says_which_convention_it_was_read_by(tmp_path):
+    """A one-channel folder whose only truth is a many-line ``init.txt``: RGBT234's convention
+    (one target, a box per frame), said in a warning that names ``--init-file`` for several."""
+    root = tmp_path / "seq"
+    write_frames(root / "visible", 3)
+    (root / "init.txt").write_text("10,10,10,10\n11,10,10,10\n40,20,8,8\n")
+    seq = open_sequence(root)
+    assert resolve_init(seq) == [InitTarget(1, BBox(10, 10, 10, 10))]
+    assert any("one target's box per frame" in w and "--init-file" in w for w in seq.warnings)

@@ -296,3 +296,27 @@ def test_vtuav_bus1_reads_its_boxes_every_tenth_frame(realdata):
     np.testing.assert_allclose(vis[100], [621, 170, 69, 96])
     np.testing.assert_allclose(ir[10], [587, 106, 67, 68])
     assert resolve_init(seq)[0].box == BBox(585, 94, 66, 83)
+
+
+def test_a_video_pair_with_vtuav_truth_reads_it_sparse_as_the_folder_does(tmp_path):
+    """VTUAV's ``rgb.txt`` / ``ir.txt`` beside a video pair are one row every 10th frame, as in
+    the image layout: rows on frames 1, 11, 21, not 1, 2, 3 (and no warning about row counts)."""
+    folder = open_sequence(_vtuav(tmp_path / "images"))
+    root = tmp_path / "videos"
+    root.mkdir()
+    for name, src in (("visible", "rgb"), ("infrared", "ir")):
+        vw = cv2.VideoWriter(
+            str(root / f"{name}.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48), True
+        )
+        for fp in folder.frames():
+            img = fp.visible if src == "rgb" else cv2.cvtColor(fp.infrared, cv2.COLOR_GRAY2BGR)
+            vw.write(img)
+        vw.release()
+        (root / f"{src}.txt").write_text((folder.path / f"{src}.txt").read_text())
+    video = open_sequence(root)
+    assert video.layout == "video-pair" and video.n_frames == folder.n_frames == 25
+    assert video.truth.sparse_every == folder.truth.sparse_every == 10
+    for ch in ("visible", "infrared"):
+        np.testing.assert_array_equal(video.truth.boxes[ch][1], folder.truth.boxes[ch][1])
+    assert (~np.isnan(video.truth.primary()[1][:, 0])).nonzero()[0].tolist() == [0, 10, 20]
+    assert not video.warnings
