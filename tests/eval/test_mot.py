@@ -110,9 +110,10 @@ def test_sparse_truth_is_scored_on_the_annotated_frames_only():
     positive."""
     rng = np.random.default_rng(0)
     n = 31
-    dense = {g: np.cumsum(rng.normal(0, 2, (n, 4)), axis=0) + [40 * g, 50, 20, 30] for g in (1, 2)}
+    start = {g: np.array([40.0 * g, 50, 20, 30]) for g in (1, 2)}
+    dense = {g: np.cumsum(rng.normal(0, 2, (n, 4)), axis=0) + start[g] for g in (1, 2)}
     tracks = {t: dense[t] + rng.normal(0, 1, (n, 4)) for t in (1, 2)}
-    tracks[3] = dense[1] + [200, 0, 0, 0]  # a false track, on every frame
+    tracks[3] = dense[1] + np.array([200.0, 0, 0, 0])  # a false track, on every frame
     sparse = {g: np.where(np.arange(n)[:, None] % 10 == 0, b, np.nan) for g, b in dense.items()}
     truth = Truth({"visible": sparse}, multi=True, sparse_every=10)
     got = evaluate(truth, TrackTable(tracks, {}), n)
