@@ -535,7 +535,7 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
     frames = 0
     counts = {"done": 0, "failed": 0}
     interrupted = False
-    with Progress(len(todo), "batch", enabled=opts.progress) as bar:
+    with Progress(len(todo), "batch", enabled=opts.progress, unit="runs") as bar:
 
         def on_result(r: TaskResult) -> None:
             nonlocal frames
@@ -543,7 +543,7 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
             counts[r.status] = counts.get(r.status, 0) + 1
             frames += int(r.summary.get("frames", 0) or 0)  # type: ignore[call-overload]
             rate = frames / max(time.perf_counter() - t0, 1e-9)
-            bar.update(1, done=counts["done"], failed=counts["failed"], frames_per_s=f"{rate:.1f}")
+            bar.update(1, failed=counts["failed"], frames=f"{rate:.0f}/s")
             write_progress_report(
                 out,
                 [results[t.key] for t in tasks if t.key in results],

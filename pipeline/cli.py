@@ -412,7 +412,7 @@ def _cmd_synth_random(a: argparse.Namespace) -> int:
         path = synthesize_random(a.out_dir, a.seed, targets, size, a.frames, a.ir16, a.force)
         print(f"wrote {path}")
         return 0
-    with Progress(len(seeds), "synth random") as bar:
+    with Progress(len(seeds), "synth random", unit="scenes") as bar:
         for seed in seeds:
             synthesize_random(
                 a.out_dir / random_folder_name(seed),

@@ -210,7 +210,6 @@ def run_detect(
             force=force,
             progress=progress,
             threads=threads,
-            rate_label="fps",
         )
     )
     return DetectResult(out, res.summary, res.complete, res.stats.interrupted, res.stats.error)

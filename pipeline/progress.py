@@ -8,11 +8,18 @@ from typing import TextIO
 
 
 class Progress:
-    """``with Progress(total, "dual") as p: p.update(1, fps=...)``."""
+    """``with Progress(total, "dual") as p: p.update(1)``: done / total, the rate and the time
+    left; ``unit`` names what is counted (``frames``, ``scenes``)."""
 
     def __init__(
-        self, total: int, desc: str = "", enabled: bool | None = None, stream: TextIO | None = None
+        self,
+        total: int,
+        desc: str = "",
+        enabled: bool | None = None,
+        stream: TextIO | None = None,
+        unit: str = "frames",
     ):
+        self.unit = unit
         self.stream = stream or sys.stderr
         self.enabled = self.stream.isatty() if enabled is None else enabled
         self.total = max(total, 1)
@@ -32,14 +39,30 @@ class Progress:
         if now - self._last < 0.1 and self.n < self.total:
             return
         self._last = now
+        self.stream.write("\r" + self.line(now) + "  ")
+        self.stream.flush()
+
+    def line(self, now: float | None = None) -> str:
+        """The bar's text: done / total, the rate so far and the time left at that rate.
+
+        Examples
+        --------
+        >>> p = Progress(200, "dual crossing2", enabled=False)
+        >>> p.n, p.t0 = 50, 0.0
+        >>> p.line(now=2.0)
+        'dual crossing2 [#######---------------------] 50/200 25.0 frames/s, 0:06 left'
+        """
+        now = time.perf_counter() if now is None else now
         frac = min(self.n / self.total, 1.0)
         width = 28
         bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
         rate = self.n / max(now - self.t0, 1e-9)
-        self.stream.write(
-            f"\r{self.desc} [{bar}] {self.n}/{self.total} {rate:6.1f}/s {self.postfix}  "
+        left = (self.total - self.n) / rate if rate > 0 else 0.0
+        eta = f"{int(left // 60)}:{int(left % 60):02d}"
+        post = f" {self.postfix}" if self.postfix else ""
+        return (
+            f"{self.desc} [{bar}] {self.n}/{self.total} {rate:.1f} {self.unit}/s, {eta} left{post}"
         )
-        self.stream.flush()
 
     def close(self) -> None:
         if self.enabled:

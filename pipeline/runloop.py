@@ -115,7 +115,6 @@ class Job:
     progress: bool | None = None
     checkpoint_frames: int = 16
     threads: bool = True
-    rate_label: str = "fps"
 
 
 @dataclass
@@ -400,9 +399,7 @@ def run_job(job: Job) -> LoopResult:
                             stats.stage_s[k] = stats.stage_s.get(k, 0.0) + v
                         writer.put(frames, item)
                         done += 1
-                        bar.update(
-                            1, **{job.rate_label: f"{done / max(stats.tracker_s, 1e-9):.0f}"}
-                        )
+                        bar.update(1)
             except KeyboardInterrupt:
                 stats.interrupted = True
             except InputError as exc:

@@ -289,3 +289,16 @@ def test_visible_only_rgbt234_folder_runs(tmp_path, capsys):
     assert rc == 0, err
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["channels"] == ["visible"] and s["frames"] == 8 and s["metrics"]["p20"] == 1.0
+
+
+def test_the_progress_bar_shows_one_rate_and_the_time_left():
+    import io
+
+    from pipeline.progress import Progress
+
+    out = io.StringIO()
+    with Progress(100, "dual s", enabled=True, stream=out) as p:
+        for _ in range(100):
+            p.update(1)
+    last = out.getvalue().rstrip().split("\r")[-1]
+    assert "100/100" in last and last.count("/s") == 1 and "left" in last

@@ -229,6 +229,13 @@ def test_rrd_holds_the_truth_iou_and_failures(scene, tmp_path):
                 np.hstack([b["mins"][0], b["sizes"][0]]), truth.boxes[ch][1][frame - 1], atol=2e-3
             )
             assert b["labels"] == ["GT 1"]
+            # the truth's label sits at its box's top-left corner, apart from the target's
+            labels = rows(store, f"/{ch}/truth_labels", ["Points2D:positions", "Points2D:labels"])
+            at = [r for r in labels.to_pylist() if r["frame"] == frame][-1]
+            np.testing.assert_allclose(
+                at["Points2D:positions"][0], truth.boxes[ch][1][frame - 1][:2], atol=2e-3
+            )
+            assert at["Points2D:labels"] == ["GT 1"]
     iou = rows(store, "/metrics/1/iou", ["Scalars:scalars"])
     assert iou.num_rows == 220
     vals = [v[0] if isinstance(v, list) else v for v in iou.column("Scalars:scalars").to_pylist()]

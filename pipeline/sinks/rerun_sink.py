@@ -64,6 +64,17 @@ STATUS_COLORS = {
     TargetStatus.LOST: 0xEF5350FF,
 }
 TRUTH_COLOR = (255, 255, 255)
+OVERLAY_COLORS = {
+    "prediction": (190, 190, 190),
+    "meanshift": (255, 160, 40),
+    "appearance": (40, 200, 255),
+    "camshift": (200, 120, 255),
+    "search": (120, 120, 120),
+}
+"""Colour of each per-stage candidate box (``<channel>/<stage>``): by stage, not by target, so
+that a target's own box is the only one in its colour."""
+OVERLAY_NAMES = tuple(OVERLAY_COLORS)
+"""The per-stage candidate boxes a tracker may report; hidden in the default view."""
 TRUTH_MATCH_COLORS = {
     TruthMatch.OVERLAP: 0x4CAF50FF,
     TruthMatch.FAILURE: 0xEF5350FF,
@@ -94,7 +105,16 @@ def blueprint(
 ) -> rrb.Blueprint:
     """Default layout: the channels side by side (truth boxes with them), time series and events
     below; with truth the centre error and the IoU of ``target_ids`` side by side."""
-    views = [rrb.Spatial2DView(origin=f"/{c}", name=c.capitalize()) for c in channels]
+    # the per-stage candidate boxes are left out of the default view (the entity tree adds
+    # them): a target's own box, its contour and the truth are what a first look needs
+    views = [
+        rrb.Spatial2DView(
+            origin=f"/{c}",
+            name=c.capitalize(),
+            contents=["$origin/**", *(f"- $origin/{n}" for n in OVERLAY_NAMES)],
+        )
+        for c in channels
+    ]
     series: list[rrb.View] = []
     if has_truth:
         ids = sorted(target_ids)
@@ -112,12 +132,26 @@ def blueprint(
                 contents=[f"+ /metrics/{i}/iou" for i in ids] or ["- /metrics/**"],
             )
         )
+    events = rrb.TextLogView(
+        origin="/events",
+        name="Events",
+        columns=rrb.TextLogColumns(
+            timeline_columns=[rrb.encodings.TimelineColumn("frame")],
+            text_log_columns=[
+                rrb.encodings.TextLogColumn("Body"),
+                rrb.encodings.TextLogColumn("EntityPath", visible=False),
+                rrb.encodings.TextLogColumn("LogLevel", visible=False),
+            ],
+        ),
+    )
     bottom = rrb.Horizontal(
         *series,
-        rrb.TextLogView(origin="/events", name="Events"),
+        events,
         rrb.StateTimelineView(origin="/targets", name="Status and truth match"),
-        rrb.TimeSeriesView(origin="/timing", name="Stage time [ms]"),
-        column_shares=[3] * len(series) + [3, 2, 2],
+        rrb.TimeSeriesView(
+            origin="/timing", name="Stage time [ms]", plot_legend=rrb.PlotLegend(visible=False)
+        ),
+        column_shares=[3] * len(series) + [5, 3, 2],
     )
     return rrb.Blueprint(
         rrb.Vertical(rrb.Horizontal(*views), bottom, row_shares=[3, 2]), collapse_panels=True
@@ -331,14 +365,28 @@ class RerunSink:
             elif key.startswith("truth:"):
                 lengths = [len(r[1]) for r in rows]
                 arr = np.asarray([b for r in rows for b in r[1]], np.float32).reshape(-1, 4)
+                white = np.tile(np.asarray(TRUTH_COLOR, np.uint8), (len(arr), 1))
+                labels = [s for r in rows for s in r[2]]
                 cols = rr.Boxes2D.columns(
                     centers=arr[:, :2],
                     half_sizes=arr[:, 2:],
-                    labels=[s for r in rows for s in r[2]],
-                    colors=np.tile(np.asarray(TRUTH_COLOR, np.uint8), (len(arr), 1)),
+                    labels=labels,
+                    show_labels=np.zeros(len(arr), bool),
+                    colors=white,
                     radii=np.full(len(arr), -1.0, np.float32),
                 ).partition(lengths)
-                rec.send_columns(f"{key.split(':', 1)[1]}/truth", indexes=idx, columns=cols)
+                ch = key.split(":", 1)[1]
+                rec.send_columns(f"{ch}/truth", indexes=idx, columns=cols)
+                # the truth's label at its box's top-left corner, apart from the target's label
+                # (drawn at the bottom of the target's box)
+                corners = arr[:, :2] - arr[:, 2:]
+                pts = rr.Points2D.columns(
+                    positions=corners,
+                    labels=labels,
+                    colors=white,
+                    radii=np.full(len(arr), 0.5, np.float32),
+                ).partition(lengths)
+                rec.send_columns(f"{ch}/truth_labels", indexes=idx, columns=pts)
             elif key.startswith("overlay:"):
                 name = key.split(":", 1)[1]
                 frames_sorted = sorted({r[0] for r in rows})
@@ -351,12 +399,13 @@ class RerunSink:
                     ],
                     np.float32,
                 ).reshape(-1, 4)
+                color = np.asarray(OVERLAY_COLORS.get(name, (160, 160, 160)), np.uint8)
                 cols = rr.Boxes2D.columns(
                     centers=arr[:, :2],
                     half_sizes=arr[:, 2:],
-                    class_ids=np.asarray(
-                        [class_id(r[1]) for fr in frames_sorted for r in per[fr]], np.uint16
-                    ),
+                    colors=np.tile(color, (len(arr), 1)),
+                    labels=[f"T{r[1]} {name}" for fr in frames_sorted for r in per[fr]],
+                    show_labels=np.zeros(len(arr), bool),
                     radii=np.full(len(arr), -0.75, np.float32),
                 ).partition([len(per[fr]) for fr in frames_sorted])
                 oidx = [rr.TimeColumn("frame", sequence=np.asarray(frames_sorted, np.int64))]
@@ -366,9 +415,11 @@ class RerunSink:
                 if "infrared" not in self.channels and not any(r[1] for r in rows):
                     continue
                 lengths = [len(r[1]) for r in rows]
+                n_strips = sum(lengths)
                 cols = rr.LineStrips2D.columns(
                     strips=[s for r in rows for s in r[1]],
                     class_ids=np.asarray([c for r in rows for c in r[2]], np.uint16),
+                    show_labels=np.zeros(n_strips, bool),
                 ).partition(lengths)
                 target = (
                     "infrared/contours"

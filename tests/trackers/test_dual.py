@@ -381,3 +381,21 @@ def test_the_runner_gives_the_dual_tracker_the_sequence_background(scene):
     attach_sequence(plain, seq)
     plain.start(seq.frame(1), [InitTarget(1, BBox(*seq.truth.primary()[1][0]))])
     assert plain.state.background is None
+
+
+def test_the_stages_candidate_boxes_are_apart_from_the_targets_own(scene, tmp_path):
+    """In the recording each stage's candidate box is coloured by its stage and named for it,
+    not drawn in the target's colour with its label (a target looked like three or four "T1"
+    boxes)."""
+    from pipeline.sinks.rerun_sink import OVERLAY_COLORS
+
+    out = run_track(scene("crossover"), RunOptions(out_dir=tmp_path / "r", plots=False)).out_dir
+    store = open_store(out / "run.rrd")
+    for stage in ("prediction", "meanshift", "appearance"):
+        t = rows(
+            store, f"/visible/{stage}", ["Boxes2D:labels", "Boxes2D:class_ids", "Boxes2D:colors"]
+        )
+        r = t.to_pylist()[5]
+        assert r["Boxes2D:labels"] == [f"T1 {stage}"] and not r.get("Boxes2D:class_ids")
+        rgb = tuple(int(r["Boxes2D:colors"][0]) >> s & 255 for s in (24, 16, 8))
+        assert rgb == OVERLAY_COLORS[stage]
