@@ -23,6 +23,20 @@ from pipeline.types import BBox, FrameResult, InitTarget
 Frames = FramePair | tuple[np.ndarray | None, np.ndarray | None]
 
 
+def _grey(infrared: np.ndarray | None) -> np.ndarray | None:
+    """An infrared frame as one channel: ``cv2.imread``'s default three equal channels (or a
+    single-channel third axis) become ``(H, W)``."""
+    if infrared is None or infrared.ndim != 3 or infrared.dtype != np.uint8:
+        return infrared
+    if infrared.shape[2] == 1:
+        return infrared[..., 0]
+    if infrared.shape[2] == 3:
+        import cv2
+
+        return cv2.cvtColor(infrared, cv2.COLOR_BGR2GRAY)
+    return infrared
+
+
 def _frame_pair(frames: Frames, index: int) -> FramePair:
     if isinstance(frames, FramePair):
         return frames
@@ -40,9 +54,11 @@ def _frame_pair(frames: Frames, index: int) -> FramePair:
         raise InputError(
             f"the visible frame must be (H, W, 3) uint8 BGR; got {visible.shape} {visible.dtype}"
         )
+    infrared = _grey(infrared)
     if infrared is not None and (infrared.ndim != 2 or infrared.dtype != np.uint8):
         raise InputError(
-            f"the infrared frame must be (H, W) uint8; got {infrared.shape} {infrared.dtype}"
+            "the infrared frame must be (H, W) uint8 (or the (H, W, 3) copy cv2.imread gives); "
+            f"got {infrared.shape} {infrared.dtype}"
         )
     if visible is not None and infrared is not None and visible.shape[:2] != infrared.shape:
         raise InputError(

@@ -59,7 +59,9 @@ class BatchOptions:
     ``default|gtot|rgbt234|lasher|vtuav`` for every run and for the report's aggregation;
     ``export``: also write results in that toolkit's format; ``ship_frames``: with a
     scheduler, send each sequence's files to the worker instead of reading a shared path;
-    ``timeout_s``: a sequence taking longer fails (None: no limit).
+    ``timeout_s``: a sequence taking longer fails (None: no limit); ``channel``, ``align``,
+    ``gt_base`` and ``stop_frame`` are ``track``'s ``--channel``, ``--align``, ``--gt-base`` and
+    ``--frames`` for every run.
     """
 
     trackers: tuple[str, ...] = (DEFAULT_TRACKER,)
@@ -75,6 +77,10 @@ class BatchOptions:
     ship_frames: bool = False
     timeout_s: float | None = None
     progress: bool | None = None
+    channel: str | None = None
+    align: str = "none"
+    gt_base: float | None = None
+    stop_frame: int | None = None
 
 
 @dataclass(frozen=True)
@@ -192,6 +198,14 @@ def track_command(seq_dir: Path, tracker: str, run_dir: Path, opts: BatchOptions
         cmd.append("--no-rrd")
     if not opts.plots:
         cmd.append("--no-plots")
+    if opts.channel is not None:
+        cmd += ["--channel", opts.channel]
+    if opts.align != "none":
+        cmd += ["--align", opts.align]
+    if opts.gt_base is not None:
+        cmd += ["--gt-base", f"{opts.gt_base:g}"]
+    if opts.stop_frame is not None:
+        cmd += ["--frames", str(opts.stop_frame)]
     return cmd
 
 
@@ -562,7 +576,11 @@ def run_batch(root: Path, out: Path, opts: BatchOptions) -> BatchResult:
     ordered = [results[t.key] for t in tasks if t.key in results]
     write_report(out, ordered, opts, wall, interrupted)
     if opts.export:
-        from pipeline.sinks.export import export_results
+        from pipeline.sinks.export import export_mot, export_results
 
-        export_results(out, [r for r in ordered if r.status in ("done", "skipped")], opts.export)
+        finished = [r for r in ordered if r.status in ("done", "skipped")]
+        if opts.export == "mot":
+            export_mot(out, finished)
+        else:
+            export_results(out, finished, opts.export)
     return BatchResult(out, ordered, wall, interrupted)

@@ -44,16 +44,48 @@ def _add_open_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_config_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--config",
+        type=Path,
+        help="TOML file of parameters, tables along the tree ([dual.decider], [detect.detection])",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="PATH.PARAM=VALUE",
+        help=(
+            "override one parameter (dual.decider.psr_confident=8; dual.groups=none leaves a "
+            "part out); repeatable, after --config"
+        ),
+    )
+
+
+def _add_protocol(p: argparse.ArgumentParser, what: str) -> None:
+    from pipeline.eval.protocols import PROTOCOLS
+
+    p.add_argument(
+        "--protocol",
+        choices=PROTOCOLS,
+        default="default",
+        help=f"the rules of {what}: ours (default) or a toolkit's own (docs/formats.md)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     from pipeline._version import __version__
-    from pipeline.eval.protocols import PROTOCOLS
 
     parser = _Parser(prog=PROG, description="Tracking in registered infrared + visible video.")
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     p = sub.add_parser("track", help="track targets through a sequence folder")
-    p.add_argument("seq_dir", type=Path)
+    p.add_argument(
+        "seq_dir",
+        type=Path,
+        help="a sequence folder of any layout docs/formats.md lists (frames and any truth)",
+    )
     p.add_argument("--out", type=Path, help="run folder (default runs/<sequence name>)")
     p.add_argument("--tracker", default=None, help="tracker engine (see 'dualtrack trackers')")
     p.add_argument(
@@ -65,28 +97,33 @@ def build_parser() -> argparse.ArgumentParser:
         "--associator",
         choices=("hungarian", "chnn"),
         default=None,
-        help="data association of --tracker detect (same as --set association.associator=...)",
+        help="data association of --tracker detect (same as --set detect.association.associator=)",
     )
-    p.add_argument("--config", type=Path, help="TOML file of parameters ([section] tables)")
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="SECTION.PARAM=VALUE",
-        help="override one parameter",
-    )
+    _add_config_options(p)
     p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
     p.add_argument("--no-plots", action="store_true", help="do not write plots/")
-    p.add_argument("--protocol", choices=PROTOCOLS, default="default")
+    _add_protocol(p, "the evaluation in summary.json")
     p.add_argument("--force", action="store_true", help="overwrite a non-empty run folder")
     p.add_argument("--frames", type=int, default=None, metavar="N", help="stop after N frames")
     _add_open_options(p)
 
     p = sub.add_parser("evaluate", help="score a results file against a sequence's ground truth")
-    p.add_argument("seq_dir", type=Path)
-    p.add_argument("tracks_csv", type=Path)
+    p.add_argument("seq_dir", type=Path, help="the sequence folder, with its ground truth")
+    p.add_argument(
+        "tracks_csv",
+        type=Path,
+        help="results: MOTChallenge rows (tracks.csv of a run folder) or one x,y,w,h per frame",
+    )
     p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
-    p.add_argument("--protocol", choices=PROTOCOLS, default="default")
+    p.add_argument(
+        "--results-base",
+        type=float,
+        default=None,
+        metavar="B",
+        help="coordinate base of the results file (0 or 1; default 1 for MOT rows, 0 for one "
+        "x,y,w,h per frame)",
+    )
+    _add_protocol(p, "the scores")
     p.add_argument(
         "--mot-rule",
         choices=("trackeval", "motmetrics"),
@@ -109,12 +146,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "detect", help="STDM detection on every frame: det.txt, rois.csv, detections.rrd"
     )
-    p.add_argument("seq_dir", type=Path)
-    p.add_argument("--out", type=Path, required=True)
-    p.add_argument("--no-rrd", action="store_true")
+    p.add_argument(
+        "seq_dir",
+        type=Path,
+        help="a sequence folder of any layout docs/formats.md lists (frames and any truth)",
+    )
+    p.add_argument(
+        "--out", type=Path, required=True, help="output folder: det.txt, rois.csv, summary.json"
+    )
+    p.add_argument("--no-rrd", action="store_true", help="do not write detections.rrd")
     p.add_argument("--force", action="store_true", help="overwrite a non-empty output folder")
-    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
-    p.add_argument("--config", type=Path)
+    _add_config_options(p)
     _add_open_options(p)
 
     p = sub.add_parser("synth", help="write synthetic sequences with exact ground truth")
@@ -123,12 +165,20 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         help="scenario name (see --list), or 'random' for a scene drawn from the seed",
     )
-    p.add_argument("out_dir", nargs="?", type=Path)
+    p.add_argument(
+        "out_dir", nargs="?", type=Path, help="the sequence folder to write (with --all: a root)"
+    )
     p.add_argument(
         "--list", action="store_true", help="print the scenarios, one per line, name first"
     )
     p.add_argument("--all", action="store_true", help="write every scenario into OUT_DIR/<name>/")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="sensor noise of a named scene; the whole scene of 'random' (0-999 development, "
+        "1000-1999 test)",
+    )
     p.add_argument(
         "--seeds",
         default=None,
@@ -157,7 +207,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "bench", help="compare trackers on sequences: accuracy and speed on one core"
     )
-    p.add_argument("seq_dirs", type=Path, nargs="*")
+    p.add_argument(
+        "seq_dirs", type=Path, nargs="*", help="sequence folders to run every tracker on"
+    )
     p.add_argument(
         "--targets",
         default=None,
@@ -207,8 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K|A-B",
         help="random scenes: number of targets per scene (default drawn 1-3)",
     )
-    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
-    p.add_argument("--config", type=Path)
+    _add_config_options(p)
     _add_open_options(p)
 
     p = sub.add_parser(
@@ -249,12 +300,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--force", action="store_true", help="redo sequences whose run folder is complete"
     )
-    p.add_argument("--protocol", choices=PROTOCOLS, default="default")
+    _add_protocol(p, "every run and the report's aggregation")
     p.add_argument(
         "--export",
-        choices=("rgbt234", "gtot", "lasher", "vtuav"),
+        choices=("rgbt234", "gtot", "lasher", "vtuav", "mot"),
         default=None,
-        help="also write each tracker's results in that toolkit's per-sequence format",
+        help="also write each tracker's results in that toolkit's format (mot: the "
+        "MOTChallenge / TrackEval folder layout, gt/ and trackers/NAME/data/SEQ.txt)",
     )
     p.add_argument(
         "--timeout",
@@ -264,8 +316,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="a sequence taking longer fails",
     )
     p.add_argument("--no-rrd", action="store_true", help="do not write run.rrd per sequence")
-    p.add_argument("--set", action="append", default=[], metavar="SECTION.PARAM=VALUE")
-    p.add_argument("--config", type=Path)
+    p.add_argument("--no-plots", action="store_true", help="do not write plots/ per sequence")
+    p.add_argument(
+        "--frames", type=int, default=None, metavar="N", help="stop every run after N frames"
+    )
+    _add_config_options(p)
+    _add_open_options(p)
 
     sub.add_parser("trackers", help="list the tracker engines and whether they can run here")
     return parser
@@ -350,6 +406,7 @@ def _cmd_evaluate(a: argparse.Namespace) -> int:
         a.protocol,
         a.ids,
         a.mot_rule,
+        a.results_base,
         channel=a.channel,
         align=a.align,
         gt_base=a.gt_base,
@@ -558,6 +615,8 @@ def _cmd_batch(a: argparse.Namespace) -> int:
         raise InputError(f"--trackers names no tracker: {a.trackers!r}")
     if a.timeout is not None and not a.timeout > 0:
         raise InputError(f"--timeout must be a positive number of seconds; got {a.timeout:g}")
+    if a.frames is not None and a.frames < 1:
+        raise InputError(f"--frames must be at least 1; got {a.frames}")
     opts = BatchOptions(
         trackers=trackers,
         workers=a.workers,
@@ -568,8 +627,13 @@ def _cmd_batch(a: argparse.Namespace) -> int:
         sets=tuple(a.set),
         config_path=a.config,
         rrd=not a.no_rrd,
+        plots=not a.no_plots,
         ship_frames=a.ship_frames,
         timeout_s=a.timeout,
+        channel=a.channel,
+        align=a.align,
+        gt_base=a.gt_base,
+        stop_frame=a.frames,
     )
     res = run_batch(a.root, a.out, opts)
     n = {st: sum(r.status == st for r in res.results) for st in ("done", "skipped", "failed")}

@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +53,10 @@ class BBox:
     (BBox(x=40.0, y=35.0, w=20, h=10), 200)
     >>> round(b.iou(BBox(45, 35, 20, 10)), 3)  # shifted by a quarter of its width
     0.6
+    >>> x, y, w, h = b  # a box unpacks, and is an array where one is asked for
+    >>> import numpy as np
+    >>> np.asarray(b).tolist()
+    [40.0, 35.0, 20.0, 10.0]
     """
 
     x: float
@@ -102,6 +106,14 @@ class BBox:
 
     def as_tuple(self) -> tuple[float, float, float, float]:
         return (self.x, self.y, self.w, self.h)
+
+    def __iter__(self) -> Iterator[float]:
+        """``x, y, w, h = box``."""
+        return iter((self.x, self.y, self.w, self.h))
+
+    def __array__(self, dtype: object = None, copy: object = None) -> np.ndarray:
+        """``np.asarray(box)``: ``[x, y, w, h]`` float64."""
+        return np.array(self.as_tuple(), dtype=dtype or np.float64)
 
     def shifted(self, dx: float, dy: float) -> BBox:
         return BBox(self.x + dx, self.y + dy, self.w, self.h)

@@ -251,3 +251,53 @@ def test_dask_cluster_results_equal_a_local_run(archive, tmp_path, dask_cluster)
                 "p20"
             ]
         )
+
+
+def test_batch_passes_track_s_reading_options_to_every_run(tmp_path):
+    """``batch --channel --gt-base --frames --no-plots`` reach each run's ``track`` command."""
+    from pipeline.batch import BatchOptions, track_command
+
+    opts = BatchOptions(channel="infrared", gt_base=1.0, stop_frame=40, plots=False)
+    cmd = track_command(tmp_path / "seq", "dual", tmp_path / "run", opts)
+    text = " ".join(cmd)
+    for part in ("--channel infrared", "--gt-base 1", "--frames 40", "--no-plots"):
+        assert part in text, part
+    plain = " ".join(track_command(tmp_path / "seq", "dual", tmp_path / "run", BatchOptions()))
+    assert "--channel" not in plain and "--frames" not in plain
+
+
+def test_the_mot_export_is_the_layout_trackeval_reads_and_scores_as_we_do(tmp_path):
+    """``--export mot``: ``gt/<seq>/gt/gt.txt`` with ``seqinfo.ini``, ``trackers/<tracker>/data/
+    <seq>.txt`` and ``seqmap.txt``; the exported truth and results, read back, score as the run
+    did (sparse truth: the annotated frames only, in both files)."""
+    from pipeline.eval import evaluate
+    from pipeline.io.groundtruth import parse_mot_truth
+    from pipeline.io.results import read_tracks
+    from pipeline.io.sequence import Truth
+
+    root = tmp_path / "archive"
+    tiny_pair(root / "a")
+    vt = tiny_pair(root / "b", n=25)  # the VTUAV layout: truth on every 10th frame
+    (vt / "visible").rename(vt / "rgb")
+    (vt / "infrared").rename(vt / "ir")
+    rows = (vt / "visible.txt").read_text().splitlines()
+    for f in ("visible.txt", "infrared.txt"):
+        (vt / f).unlink()
+    for f in ("rgb.txt", "ir.txt"):
+        (vt / f).write_text("".join(rows[k].replace(",", " ") + "\n" for k in (0, 10, 20)))
+    res = run_batch(root, tmp_path / "out", BatchOptions(export="mot", progress=False))
+    assert {r.status for r in res.results} == {"done"}
+    base = tmp_path / "out" / "export" / "mot"
+    assert (base / "seqmap.txt").read_text().split() == ["name", "a", "b"]
+    for seq, n in (("a", 16), ("b", 25)):
+        assert f"seqLength={n}" in (base / "gt" / seq / "seqinfo.ini").read_text()
+        mt = parse_mot_truth(base / "gt" / seq / "gt" / "gt.txt", n)
+        tracks = read_tracks(base / "trackers" / "dual" / "data" / f"{seq}.txt", n)
+        every = 10 if seq == "b" else 1
+        got = evaluate(Truth({"visible": mt.boxes}, multi=True, sparse_every=every), tracks, n)
+        run = json.loads((tmp_path / "out" / seq / "summary.json").read_text())["metrics"]
+        assert got["p20"] == pytest.approx(run["p20"]) and got["auc"] == pytest.approx(run["auc"])
+    frames = {
+        int(r.split(",")[0]) for r in (base / "trackers/dual/data/b.txt").read_text().split()
+    }
+    assert frames == {1, 11, 21}  # the annotated frames only, as its gt.txt

@@ -302,3 +302,18 @@ def test_the_progress_bar_shows_one_rate_and_the_time_left():
             p.update(1)
     last = out.getvalue().rstrip().split("\r")[-1]
     assert "100/100" in last and last.count("/s") == 1 and "left" in last
+
+
+def test_every_argument_of_every_command_says_what_it_is():
+    import argparse
+
+    from pipeline.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    silent = [
+        f"{name} {a.dest}"
+        for name, p in sub.choices.items()
+        for a in p._actions
+        if not isinstance(a, argparse._HelpAction) and not a.help
+    ]
+    assert not silent, silent

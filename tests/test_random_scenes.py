@@ -222,7 +222,13 @@ def test_files_attributes_and_reader(tmp_path):
         and meta["family"] == "random"
     )
     assert set(meta["frame_attributes"]["1"]) == set(ATTRIBUTES)
-    assert set(meta["attributes"]) <= set(ATTRIBUTES)
+    # the scene's attributes in the named scenes' codes (RGBT234's, LasHeR's OV)
+    from pipeline.io.attributes import LASHER_ATTRIBUTES, RGBT234_ATTRIBUTES
+    from pipeline.synthetic import ATTRIBUTES as NAMED
+
+    codes = set(RGBT234_ATTRIBUTES) | set(LASHER_ATTRIBUTES)
+    assert meta["attributes"] and set(meta["attributes"]) <= codes
+    assert {c for cs in NAMED.values() for c in cs} <= codes
     assert meta["params"]["targets"] and meta["params"]["sensor"]["jpeg_quality"]["visible"] >= 50
 
 

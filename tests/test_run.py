@@ -274,3 +274,17 @@ def test_the_centre_error_plot_draws_sparse_truth(tmp_path):
     rgb = np.array(_color(0)) * 255
     drawn = (np.abs(img - rgb).sum(axis=2) < 40).sum()
     assert drawn > 300, drawn  # pixels of T1's colour: the line and its markers
+
+
+def test_an_infrared_frame_read_as_three_channels_is_taken_as_grey():
+    """``cv2.imread`` returns a grey PNG as three equal channels by default: the API takes it as
+    the one channel it is, with the same result as the (H, W) array."""
+    from pipeline import DualTracker
+
+    vis = np.full((60, 80, 3), 90, np.uint8)
+    vis[20:40, 30:40] = (40, 40, 200)
+    ir = np.full((60, 80), 60, np.uint8)
+    ir[20:40, 30:40] = 200
+    grey = DualTracker().start((vis, ir), [(30, 20, 10, 20)])
+    three = DualTracker().start((vis, np.dstack([ir] * 3)), [(30, 20, 10, 20)])
+    assert three.targets[0].box == grey.targets[0].box

@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from pipeline.types import BBox, TargetStatus
@@ -43,3 +44,12 @@ def test_statuses_are_design_names():
         "lost",
     ]
     assert not TargetStatus.LOST.is_reported and TargetStatus.MERGED.is_reported
+
+
+def test_a_box_unpacks_and_becomes_an_array():
+    b = BBox(1.5, 2.0, 3.0, 4.0)
+    x, y, w, h = b
+    assert (x, y, w, h) == (1.5, 2.0, 3.0, 4.0) and list(b) == [1.5, 2.0, 3.0, 4.0]
+    a = np.asarray(b)
+    assert a.dtype == np.float64 and a.tolist() == [1.5, 2.0, 3.0, 4.0]
+    assert np.asarray([b, b]).shape == (2, 4)

@@ -54,19 +54,11 @@ def _n(v: float) -> str:
 
 
 def _gt_rows(seq) -> list[str]:
-    """MOTChallenge gt rows (1-based) of a sequence's scored truth."""
-    ch = seq.truth.primary_channel()
-    rows = []
-    for f in range(seq.n_frames):
-        for tid, b in sorted(seq.truth.boxes[ch].items()):
-            if not np.isnan(b[f]).any():
-                rows.append(f"{f + 1},{tid},{_row(b[f])},1,1,1")
-        for tid, b in sorted(
-            seq.truth.distractors.items()
-        ):  # class 8: TrackEval drops the tracks matched to them
-            if not np.isnan(b[f]).any():
-                rows.append(f"{f + 1},{tid},{_row(b[f])},0,8,1")
-    return rows
+    """MOTChallenge gt rows (1-based) of a sequence's scored truth, as ``batch --export mot``
+    writes them (distractors as class 8: TrackEval drops the tracks matched to them)."""
+    from pipeline.sinks.export import mot_gt_rows
+
+    return mot_gt_rows(seq.truth, seq.n_frames)
 
 
 def _perturbed(seq, rng: np.random.Generator) -> dict[int, np.ndarray]:

@@ -300,6 +300,7 @@ def evaluate_files(
     protocol: str = "default",
     id_rule: str = "auto",
     mot_rule: str = "trackeval",
+    results_base: float | None = None,
     **open_kw: object,
 ) -> dict[str, object]:
     """``dualtrack evaluate SEQ_DIR TRACKS_CSV``: open the sequence, read the results, score them.
@@ -319,6 +320,9 @@ def evaluate_files(
         Which track is scored against which truth id (module doc).
     mot_rule : {"trackeval", "motmetrics"}
         The CLEAR matching rule of the many-target scores.
+    results_base : {0, 1}, optional
+        The results file's coordinate base; default 1 for MOT rows, 0 for a per-frame box
+        file (``--results-base``).
     **open_kw
         Passed to :func:`~pipeline.io.sequence.open_sequence` (``channel``, ``align``,
         ``gt_base``).
@@ -356,7 +360,7 @@ def evaluate_files(
         from pipeline.errors import InputError
 
         raise InputError(f"{seq.path} has no ground truth to evaluate against")
-    tracks = read_tracks(tracks_csv, seq.n_frames)
+    tracks = read_tracks(tracks_csv, seq.n_frames, results_base)
     out = evaluate(seq.truth, tracks, seq.n_frames, protocol, id_rule, mot_rule)
     warnings = [*seq.warnings, *tracks.warnings]
     if warnings:

@@ -2,7 +2,8 @@
 
 Where a sequence's attributes come from, first that applies:
 
-* ``scene.json`` with an ``attributes`` list (our synthetic scenes, RGBT234 codes);
+* ``scene.json`` with an ``attributes`` list (our synthetic scenes, named and random alike, in
+  RGBT234's codes; LasHeR's ``OV`` for out of view);
 * per-frame tag files ``<seq>/*.tag`` (VOT style, one 0/1 or label per frame line): the
   file's stem is the attribute, which the sequence has if any frame carries it;
 * a table at the archive root, ``sequencesAttr.txt`` (GTOT toolkit) or ``attributes.txt``

@@ -27,8 +27,17 @@ class TrackTable:
     warnings: tuple[str, ...] = ()
 
 
-def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
-    """Read ``tracks.csv`` (MOT rows) or a per-frame box file for a sequence of ``n_frames``."""
+def read_tracks(path: str | Path, n_frames: int, base: float | None = None) -> TrackTable:
+    """Read ``tracks.csv`` (MOT rows) or a per-frame box file for a sequence of ``n_frames``.
+
+    ``base`` is the file's coordinate base (the coordinate of the first pixel's corner: 0 or
+    1); default 1 for MOT rows, as MOTChallenge writes them, and 0 for a per-frame box file, as
+    the single-object toolkits write (OTB's own truth files are 1-based: give 1).
+    """
+    if base is not None and base not in (0, 1):
+        raise InputError(
+            f"the results' coordinate base must be 0 or 1 (--results-base); got {base:g}"
+        )
     p = Path(path)
     if not p.is_file():
         raise InputError(
@@ -47,7 +56,7 @@ def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
         return TrackTable({}, {})
     n_cols = len([c for c in first.replace(",", " ").split() if c])
     if n_cols in (4, 8):
-        arr = parse_box_file(p, "xywh", 0.0)
+        arr = parse_box_file(p, "xywh", 0.0 if base is None else base)
         if arr.shape[0] > n_frames:
             raise InputError(
                 f"{p}: {arr.shape[0]} result lines for a sequence of {n_frames} frames"
@@ -67,7 +76,7 @@ def read_tracks(path: str | Path, n_frames: int) -> TrackTable:
     conf_d: dict[int, np.ndarray] = {}
     seen: set[tuple[int, int]] = set()
     dup: list[tuple[int, int]] = []
-    for frame, tid, box, conf, _vis in parse_mot_rows(p, base=MOT_BASE):
+    for frame, tid, box, conf, _vis in parse_mot_rows(p, base=MOT_BASE if base is None else base):
         if frame > n_frames:
             raise InputError(f"{p}: row for frame {frame} but the sequence has {n_frames} frames")
         if (frame, tid) in seen:

@@ -46,6 +46,40 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
 }
 
 
+SCENE_CODES = {
+    "shadow": "BC",
+    "darkness": "LI",
+    "clutter": "BC",
+    "crossover": "TC",
+    "out-of-view": "OV",
+    "scale-change": "SV",
+    "fast-motion": "FM",
+}
+"""The RGBT234 (LasHeR: OV) code of each of the random family's per-frame flags: a random scene's
+``attributes`` are in the same codes as the named scenes', so that a report has one row per
+challenge (occlusion is PO or HO by how deep it goes)."""
+
+
+def scene_codes(present: list[str], vis: dict[int, np.ndarray], min_frames: int) -> list[str]:
+    """A random scene's attributes in RGBT234's codes, from the per-frame flags it carries:
+    ``HO`` when some target is under a quarter visible for ``min_frames`` frames, else ``PO``
+    with the occlusion flag, else ``NO``; then the code of every other flag.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> scene_codes(["occlusion", "shadow", "clutter"], {1: np.full(9, 0.5)}, 5)
+    ['PO', 'BC']
+    """
+    heavy = any(int((v < 0.25).sum()) >= min_frames for v in vis.values())
+    codes = ["HO" if heavy else "PO"] if "occlusion" in present else ["NO"]
+    for a in present:
+        c = SCENE_CODES.get(a)
+        if c is not None and c not in codes:
+            codes.append(c)
+    return codes
+
+
 def _ranges(mask: np.ndarray) -> list[list[int]]:
     """1-based inclusive frame ranges where ``mask`` is True."""
     out, start = [], None
@@ -368,7 +402,7 @@ def synthesize_random(
         ],
         "distractors": [a.name or a.kind for a in scene.actors if a.target_id == 0],
         **_visibility_meta(ids, boxes["visible"], vis),
-        "attributes": present,
+        "attributes": scene_codes(present, vis, MIN_ATTRIBUTE_FRAMES),
         "frame_attributes": {
             str(i): {a: _ranges(flags[i][a]) for a in FRAME_ATTRIBUTES} for i in ids
         },

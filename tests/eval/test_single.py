@@ -111,3 +111,18 @@ def test_evaluate_many_targets_with_no_track_at_all():
     out = evaluate(truth, TrackTable({}, {}), 3)
     assert out["idf1"] == out["idp"] == out["idr"] == 0.0
     assert out["p20"] == 0.0 and out["mota"] == 0.0
+
+
+def test_a_one_based_results_file_is_read_as_one(tmp_path):
+    """OTB's own truth file (1-based) scored against its sequence: 1.41 px off when read as
+    0-based, exact with ``results_base=1`` (``evaluate --results-base 1``)."""
+    from pipeline.eval import evaluate_files
+    from tests.conftest import write_boxes, write_frames
+
+    root = tmp_path / "otb"
+    write_frames(root / "img", 5, name="{:04d}")
+    write_boxes(root / "groundtruth_rect.txt", 5, sep="\t", base=1.0)
+    as_zero = evaluate_files(root, root / "groundtruth_rect.txt")
+    exact = evaluate_files(root, root / "groundtruth_rect.txt", results_base=1)
+    assert as_zero["mean_error_px"] == pytest.approx(2**0.5)
+    assert exact["mean_error_px"] == 0.0 and exact["p5"] == 1.0
