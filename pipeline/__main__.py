@@ -1,5 +1,5 @@
 """``python -m pipeline`` is the same as the ``dualtrack`` command."""
 
-from pipeline.cli import main
+from pipeline._entry import entry
 
-raise SystemExit(main())
+entry()

@@ -729,7 +729,35 @@ def _die_with_parent() -> None:
         raise SystemExit(130)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, hold: bool = False) -> int:
+    """Run one ``dualtrack`` command line (``argv``, default ``sys.argv[1:]``); returns the exit
+    status (module doc). ``hold`` keeps the signal handlers installed after it returns (the
+    command's own process); otherwise the caller's are restored."""
+    from pipeline._signals import Interrupts
+
+    interrupts = Interrupts()
+    interrupts.install()
+    try:
+        code = _main(argv)
+        if code != 130 and interrupts.count:  # an interruption Python dropped on the way
+            raise KeyboardInterrupt
+        return code
+    except Exception:
+        if not interrupts.count:
+            raise
+        # a signal during an import can surface as another error (NumPy reports an
+        # interrupted import of ``datetime`` as an ImportError): the interruption is the news
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        if not hold:
+            interrupts.restore()
+
+
+def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     _die_with_parent()
     # the Rerun SDK logs its own errors to stderr (a full disk twice over); ours name the file in
@@ -745,33 +773,41 @@ def main(argv: list[str] | None = None) -> int:
             os.environ[var] = "1"
     parser = build_parser()
     a = parser.parse_args(argv)
-    from pipeline.errors import InputError
+    from pipeline._signals import taken
 
     try:
         return COMMANDS[a.command](a)
-    except InputError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 1
-    except OSError as exc:  # a file or folder the system refused: say which and why
-        from pipeline.errors import describe_os_error
+    except Exception as exc:
+        if taken():
+            raise  # what followed a signal: main says interrupted
+        return _report(exc)
 
+
+def _report(exc: Exception) -> int:
+    """One line on stderr for a command's error (the exit status is 1): bad input and refused
+    files as ``error:``, anything else as ``internal error:`` (``DUALTRACK_DEBUG=1`` re-raises
+    it for the traceback)."""
+    from pipeline.errors import InputError, describe_os_error
+
+    if isinstance(exc, InputError):
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+    elif isinstance(exc, OSError):  # a file or folder the system refused: say which and why
         print(f"{PROG}: error: {describe_os_error(exc)}", file=sys.stderr)
-        return 1
-    except Exception as exc:  # unexpected: still one line unless debugging
-        if os.environ.get("DUALTRACK_DEBUG"):
-            raise
+    elif os.environ.get("DUALTRACK_DEBUG"):
+        raise exc
+    else:
         text = " ".join(str(exc).split())  # one line, whatever the exception's message holds
         print(
             f"{PROG}: internal error: {type(exc).__name__}: {text} (set DUALTRACK_DEBUG=1 for "
             "the traceback)",
             file=sys.stderr,
         )
-        return 1
+    return 1
 
 
 if __name__ == "__main__":

@@ -333,6 +333,9 @@ class _Signals:
         self.count += 1
 
     def __enter__(self) -> _Signals:
+        from pipeline._signals import taken
+
+        self.count = taken()  # one the command took before the loop, that Python dropped
         if self.active:
             for s in (signal.SIGINT, signal.SIGTERM):
                 self._previous[s] = signal.signal(s, self._handler)
@@ -426,6 +429,9 @@ def run_job(job: Job) -> LoopResult:
                 )
             )
         stats.frames = writer.written if writer.error is not None else done
+        if writer.error is not None and stats.error is not None:
+            # the outputs were cut back to their last checkpoint: say what they hold
+            stats.error += f" (the outputs hold the first {stats.frames} frames)"
         if sig.count and stats.error is None:
             stats.interrupted = True
         complete = not stats.interrupted and stats.error is None and stats.frames == n_total

@@ -172,6 +172,10 @@ def test_full_disk_leaves_whole_rows_and_a_true_summary(tmp_path, scene):
         assert (
             s["frames"] == _csv_frames(run) and s["frames"] % 16 == 0
         )  # the last checkpoint that fitted
+        assert f"the outputs hold the first {s['frames']} frames" in r.stderr
+        # the recording is cut back to that checkpoint: whole messages, every frame the summary
+        # reports and no more (without a footer, as after a kill: readable as a stream)
+        assert _rrd_frames(run / "run.rrd") == set(range(1, s["frames"] + 1))
     finally:
         subprocess.run(["umount", str(mnt)], capture_output=True)
 
@@ -377,3 +381,41 @@ def test_bench_reports_failed_sequences_and_prints_the_rest(tmp_path):
     assert (
         "| good | meanshift |" in r.stdout and "1 failed:" in r.stdout and "00003.jpg" in r.stdout
     )
+
+
+@pytest.fixture(scope="module")
+def interpreter_start_s() -> float:
+    """How long this machine's interpreter takes to start (``site`` and the editable install's
+    finder included) before any of our code runs: the slowest of five, with half again as a
+    margin for a loaded machine."""
+    took = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        subprocess.run([PY, "-c", "pass"], check=True)
+        took.append(time.perf_counter() - t0)
+    return 1.5 * max(took)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize("after_start_s", [0.0, 0.05, 0.3, 0.8])
+def test_a_signal_from_the_first_instant_is_an_interruption(
+    tmp_path, long_scene, interpreter_start_s, sig, after_start_s
+):
+    """Ctrl-C or SIGTERM from the moment our code runs (importing, reading the sequence) or
+    while tracking: one line, ``interrupted``, exit 130; never a traceback, never 143. (Before
+    the interpreter has started, a signal is the operating system's: ``pipeline._entry``.)"""
+    p = _start("track", long_scene, "--tracker", "mil", "--out", tmp_path / "run")
+    time.sleep(interpreter_start_s + after_start_s)
+    p.send_signal(sig)
+    _out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, (p.returncode, err)
+    assert "Traceback" not in err
+    assert err.strip().splitlines()[-1].startswith("dualtrack: interrupted"), err
+
+
+def test_init_file_of_random_bytes_names_the_file(tmp_path):
+    bad = tmp_path / "init.bin"
+    bad.write_bytes(bytes(range(256)) * 4)
+    r = _cli("track", _tiny(tmp_path / "s"), "--init-file", bad, "--out", tmp_path / "o")
+    assert r.returncode == 1
+    _one_error_line(r.stderr, str(bad), "not a text file")

@@ -39,8 +39,20 @@ def parse_box_arg(text: str) -> BBox:
 def read_init_file(path: Path) -> list[InitTarget]:
     """Targets from a file of ``x,y,w,h`` lines or MOT rows (only frame 1 is used)."""
     if not path.is_file():
-        raise InputError(f"--init-file not found: {path}")
-    first = next((ln for ln in path.read_text().splitlines() if ln.strip()), "")
+        raise InputError(
+            f"--init-file not found: {path}"
+            if not path.exists()
+            else f"--init-file {path} is not a file"
+        )
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(
+            f"--init-file {path}: not a text file (one x,y,w,h per line, or MOT rows)"
+        ) from None
+    except OSError as exc:
+        raise InputError(f"cannot read --init-file {path}: {exc.strerror}") from None
+    first = next((ln for ln in text.splitlines() if ln.strip()), "")
     n_cols = len([p for p in first.replace(",", " ").split() if p])
     if n_cols >= 6:
         rows = parse_mot_rows(path, base=MOT_BASE)  # MOTChallenge rows are 1-based

@@ -24,6 +24,7 @@ and a killed one a recording (without footer) of every frame up to its last chec
 from __future__ import annotations
 
 import json
+import os
 import uuid
 from collections import defaultdict
 from pathlib import Path
@@ -201,6 +202,14 @@ class RerunSink:
             colors=np.array([TRUTH_MATCH_COLORS[m] for m in TruthMatch], np.uint32),
         )
         self._log_static(target_ids, config, has_truth)
+        self._rolled_back = False
+        try:  # the header and the static data, whole: what a cut-back recording keeps at least
+            self.rec.flush(timeout_sec=10.0)
+            self._good_size = path.stat().st_size  # bytes of the file at its last checkpoint
+        except (RuntimeError, OSError) as exc:
+            self.rec.disconnect()
+            path.unlink(missing_ok=True)
+            raise OutputError(f"cannot write {path}: {exc} (is the disk full?)") from None
 
     # -- static ---------------------------------------------------------------------
     def _log_static(
@@ -451,7 +460,7 @@ class RerunSink:
 
     def checkpoint(self) -> None:
         """Write the buffered frames and wait until they reach the file (a killed run keeps
-        them)."""
+        them); the file's size then is where :meth:`rollback` cuts it back to."""
         try:
             self.flush()
             self.rec.flush(timeout_sec=10.0)
@@ -459,10 +468,24 @@ class RerunSink:
             RuntimeError
         ) as exc:  # the SDK's file writer stopped (a full disk, a removed folder)
             raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
+        try:
+            self._good_size = self.path.stat().st_size
+        except OSError as exc:
+            raise OutputError(f"cannot write {self.path}: {exc.strerror}") from None
+
+    def rollback(self) -> None:
+        """A checkpoint of the run failed (a full disk): the recording is cut back, when it is
+        closed, to its last complete checkpoint, so that it holds the frames the summary
+        reports, whole messages only (without the footer a closed file has: the viewer and a
+        stream reader read it, ``rerun rrd verify`` does not)."""
+        self._rolled_back = True
 
     def close(self) -> None:
         """Flush what is buffered and close the file (writes the footer)."""
         if self._closed:
+            return
+        if self._rolled_back:
+            self._close_cut()
             return
         try:
             try:
@@ -480,6 +503,23 @@ class RerunSink:
                     self.rec.disconnect()
         except RuntimeError as exc:
             raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
+
+    def _close_cut(self) -> None:
+        """Close after a rollback: the frames after the last checkpoint are dropped and the file
+        is cut back to that checkpoint's size (whatever the writer added after it, a message
+        cut by the full disk or a footer, goes)."""
+        self._closed = True
+        self._buf, self._frames = defaultdict(list), []
+        try:
+            self.rec.flush(timeout_sec=10.0)
+        except RuntimeError:
+            pass
+        finally:
+            self.rec.disconnect()
+        try:
+            os.truncate(self.path, self._good_size)
+        except OSError:
+            pass
 
     def __enter__(self) -> RerunSink:
         return self
