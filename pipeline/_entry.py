@@ -28,14 +28,24 @@ def entry() -> None:
     :func:`pipeline.cli.main` runs; the process exits with its status, deaf to further signals
     while the interpreter shuts down (a Ctrl-C then would cut the exit short)."""
     Interrupts().install()
+    messages = None
     try:
+        from pipeline import libmsg
         from pipeline.cli import main
 
+        messages = libmsg.LibraryMessages()
+        messages.start()
+        libmsg.install(messages)
         code = main(hold=True)
     except KeyboardInterrupt:  # before main took the signals over
         print(f"{PROG}: interrupted", file=sys.stderr)
         code = 130
     _deaf()
+    if messages is not None:
+        said = messages.unreported()
+        if said is not None:
+            print(f"{PROG}: warning: {said}", file=sys.stderr)
+        messages.stop()
     if code == 130:
         # An interruption that passed through some compiled modules' imports (SciPy's) marks the
         # interpreter, whose exit would then kill the process by SIGINT instead of returning

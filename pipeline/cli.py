@@ -10,14 +10,47 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 PROG = "dualtrack"
 
 
+_ESCAPES = {c: f"\\x{c:02x}" for c in [*range(32), 127]} | {10: "\\n", 13: "\\r", 9: "\\t"}
+
+
+def one_line(text: object) -> str:
+    """``text`` on one line: control characters (a newline in a folder's name) escaped as Python
+    writes them (``\\n``)."""
+    return str(text).translate(_ESCAPES)
+
+
+def _say(text: str) -> None:
+    """``dualtrack: <text>`` on stderr, on one line."""
+    print(f"{PROG}: {one_line(text)}", file=sys.stderr)
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, exit 1 (docs/formats.md), not argparse's 2
-        self.exit(1, f"{PROG}: error: {message} (see {self.prog} --help)\n")
+        self.exit(1, f"{PROG}: error: {one_line(message)} (see {self.prog} --help)\n")
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
+        """As argparse's, and a name or path given as an empty string is refused (``--out ''``
+        would write into the current folder, ``--tracker=`` run the default)."""
+        takes_text = kwargs.get("type", str) in (str, Path) and "choices" not in kwargs
+        if takes_text and kwargs.get("action", "store") in ("store", "append"):
+            kwargs["type"] = _non_empty(kwargs.get("type", str))
+        return super().add_argument(*args, **kwargs)
+
+
+def _non_empty(convert: Callable[[str], Any]) -> Callable[[str], Any]:
+    def text(value: str) -> Any:
+        if not value.strip():
+            raise argparse.ArgumentTypeError("an empty value; give one or leave the option out")
+        return convert(value)
+
+    return text
 
 
 def _add_open_options(p: argparse.ArgumentParser) -> None:
@@ -374,23 +407,20 @@ def _cmd_track(a: argparse.Namespace) -> int:
 
 def _warn(warnings: object) -> None:
     for w in warnings if isinstance(warnings, list) else []:
-        print(f"{PROG}: warning: {w}", file=sys.stderr)
+        _say(f"warning: {w}")
 
 
 def _ending(error: str | None, interrupted: bool, frames: int, out: Path) -> int:
     """The exit status of a run, with its one line on stderr (the run loop kept every output
     valid)."""
     if error:
-        print(
-            f"{PROG}: error: {error} (results for the {frames} frames before it are in {out})",
-            file=sys.stderr,
-        )
+        if not out.is_dir():
+            _say(f"error: the run folder {out} was removed during the run, after {frames} frames")
+        else:
+            _say(f"error: {error} (the outputs in {out} hold the first {frames} frames)")
         return 1
     if interrupted:
-        print(
-            f"{PROG}: interrupted after {frames} frames; outputs in {out} are valid",
-            file=sys.stderr,
-        )
+        _say(f"interrupted after {frames} frames; outputs in {out} are valid")
         return 130
     return 0
 
@@ -601,7 +631,17 @@ def _cmd_bench(a: argparse.Namespace) -> int:
         gt_base=a.gt_base,
     )
     print(format_table(rows))
-    return 1 if any("failed" in r for r in rows) else 0
+    failed = [r for r in rows if "failed" in r]
+    if failed:
+        first = failed[0]
+        _say(
+            f"error: {len(failed)} of {len(rows)} runs failed (listed above), the first "
+            f"{first['sequence']}"
+            + (f" / {first['tracker']}" if first["tracker"] != "-" else "")
+            + f": {first['failed']}"
+        )
+        return 1
+    return 0
 
 
 def _cmd_batch(a: argparse.Namespace) -> int:
@@ -642,12 +682,16 @@ def _cmd_batch(a: argparse.Namespace) -> int:
         f"in {res.wall_seconds:.1f} s; report in {res.out_dir / 'report.md'}"
     )
     if res.interrupted:
-        print(
-            f"{PROG}: interrupted; finished sequences and the report in {res.out_dir} are valid",
-            file=sys.stderr,
-        )
+        _say(f"interrupted; finished sequences and the report in {res.out_dir} are valid")
         return 130
-    return 1 if n["failed"] else 0
+    if n["failed"]:
+        first = next(r for r in res.results if r.status == "failed")
+        _say(
+            f"error: {n['failed']} of {len(res.results)} sequences failed, the first "
+            f"{first.task.key}: {first.error} (all in {res.out_dir / 'report.md'})"
+        )
+        return 1
+    return 0
 
 
 def _cmd_detect(a: argparse.Namespace) -> int:
@@ -747,10 +791,10 @@ def main(argv: list[str] | None = None, hold: bool = False) -> int:
             raise
         # a signal during an import can surface as another error (NumPy reports an
         # interrupted import of ``datetime`` as an ImportError): the interruption is the news
-        print(f"{PROG}: interrupted", file=sys.stderr)
+        _say("interrupted")
         return 130
     except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
+        _say("interrupted")
         return 130
     finally:
         if not hold:
@@ -778,7 +822,7 @@ def _main(argv: list[str] | None) -> int:
     try:
         return COMMANDS[a.command](a)
     except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
+        _say("interrupted")
         return 130
     except BrokenPipeError:
         return 1
@@ -795,17 +839,16 @@ def _report(exc: Exception) -> int:
     from pipeline.errors import InputError, describe_os_error
 
     if isinstance(exc, InputError):
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        _say(f"error: {exc}")
     elif isinstance(exc, OSError):  # a file or folder the system refused: say which and why
-        print(f"{PROG}: error: {describe_os_error(exc)}", file=sys.stderr)
+        _say(f"error: {describe_os_error(exc)}")
     elif os.environ.get("DUALTRACK_DEBUG"):
         raise exc
     else:
         text = " ".join(str(exc).split())  # one line, whatever the exception's message holds
-        print(
-            f"{PROG}: internal error: {type(exc).__name__}: {text} (set DUALTRACK_DEBUG=1 for "
-            "the traceback)",
-            file=sys.stderr,
+        _say(
+            f"internal error: {type(exc).__name__}: {text} (set DUALTRACK_DEBUG=1 for the "
+            "traceback)"
         )
     return 1
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import re
 import tomllib
 import types
@@ -29,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.errors import ConfigError
-from pipeline.params import Section
+from pipeline.params import INT_MAX, Section
 from pipeline.sinks.settings import RerunConfig
 from pipeline.tracker_config import (
     CamShiftConfig,
@@ -172,22 +173,27 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if hint is int:
         if isinstance(value, bool):
             raise ConfigError(f"{where} must be an integer; got {value!r}")
-        if isinstance(value, int):
+        if isinstance(value, int) and abs(value) <= INT_MAX:
             return value
         try:
             f = float(value)
         except (TypeError, ValueError):
             raise ConfigError(f"{where} must be an integer; got {value!r}") from None
-        if f != int(f):
+        if not math.isfinite(f) or f != int(f):
             raise ConfigError(f"{where} must be an integer; got {value!r}")
+        if abs(f) > INT_MAX:
+            raise ConfigError(f"{where} must be an integer of at most {INT_MAX}; got {value!r}")
         return int(f)
     if hint is float:
         if isinstance(value, bool):
             raise ConfigError(f"{where} must be a number; got {value!r}")
         try:
-            return float(value)
+            f = float(value)
         except (TypeError, ValueError):
             raise ConfigError(f"{where} must be a number; got {value!r}") from None
+        if not math.isfinite(f):
+            raise ConfigError(f"{where} must be a finite number; got {value!r}")
+        return f
     if hint is str:
         return str(value)
     return value

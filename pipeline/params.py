@@ -23,7 +23,10 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-__all__ = ["Range", "Section", "declared_range", "param", "validate"]
+__all__ = ["INT_MAX", "Range", "Section", "declared_range", "param", "validate"]
+
+INT_MAX = 2**31 - 1
+"""The largest integer parameter: OpenCV and NumPy kernels take 32-bit counts and sizes."""
 
 
 @dataclass(frozen=True)
@@ -56,7 +59,9 @@ class Range:
             return False
         if integer and not isinstance(value, int):
             return False
-        if isinstance(value, float) and math.isnan(value):
+        if isinstance(value, float) and not math.isfinite(value):
+            return False
+        if integer and abs(value) > INT_MAX:
             return False
         if self.ge is not None and not value >= self.ge:
             return False
@@ -148,7 +153,8 @@ def validate(obj: Any) -> None:
     ------
     ValueError
         ``"<section>.<field> must be <range>; got <value>"`` for the first field outside
-        its range (an integer field also refuses floats and bools).
+        its range (an integer field also refuses floats, bools and values beyond
+        :data:`INT_MAX`; a number field refuses NaN and infinities).
     """
     cls = type(obj)
     for name, r, integer in _checks(cls):
@@ -156,7 +162,18 @@ def validate(obj: Any) -> None:
         if not r.accepts(value, integer):
             kind = "an odd integer " if r.odd else "an integer " if integer else ""
             section = getattr(cls, "section", cls.__name__)
+            if _beyond(value):
+                need = f"an integer of at most {INT_MAX}" if integer else "a finite number"
+                raise ValueError(f"{section}.{name} must be {need}; got {value!r}")
             raise ValueError(f"{section}.{name} must be {kind}{r.text()}; got {value!r}")
+
+
+def _beyond(value: Any) -> bool:
+    """True for a number no field takes, whatever its range: NaN, infinities, integers beyond
+    :data:`INT_MAX`."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    return not math.isfinite(value) or abs(value) > INT_MAX
 
 
 class Section:

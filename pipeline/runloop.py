@@ -428,10 +428,8 @@ def run_job(job: Job) -> LoopResult:
                     describe_os_error(e) if isinstance(e, OSError) else f"{type(e).__name__}: {e}"
                 )
             )
+        # a writer error cut the outputs back to their last checkpoint
         stats.frames = writer.written if writer.error is not None else done
-        if writer.error is not None and stats.error is not None:
-            # the outputs were cut back to their last checkpoint: say what they hold
-            stats.error += f" (the outputs hold the first {stats.frames} frames)"
         if sig.count and stats.error is None:
             stats.interrupted = True
         complete = not stats.interrupted and stats.error is None and stats.frames == n_total

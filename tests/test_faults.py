@@ -172,7 +172,7 @@ def test_full_disk_leaves_whole_rows_and_a_true_summary(tmp_path, scene):
         assert (
             s["frames"] == _csv_frames(run) and s["frames"] % 16 == 0
         )  # the last checkpoint that fitted
-        assert f"the outputs hold the first {s['frames']} frames" in r.stderr
+        assert f"hold the first {s['frames']} frames" in r.stderr
         # the recording is cut back to that checkpoint: whole messages, every frame the summary
         # reports and no more (without a footer, as after a kill: readable as a stream)
         assert _rrd_frames(run / "run.rrd") == set(range(1, s["frames"] + 1))
@@ -419,3 +419,167 @@ def test_init_file_of_random_bytes_names_the_file(tmp_path):
     r = _cli("track", _tiny(tmp_path / "s"), "--init-file", bad, "--out", tmp_path / "o")
     assert r.returncode == 1
     _one_error_line(r.stderr, str(bad), "not a text file")
+
+
+# --- issue 31, items 15-16: what used to be accepted without a word, and one line per error ---
+
+
+def _only_line(err: str, *needles: str) -> str:
+    """stderr is exactly one line, an error naming every needle."""
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("dualtrack: error: "), lines[0]
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--tracker=", "--out", "o"], "--tracker"),
+        (["--out", ""], "--out"),
+        (["--set", "", "--out", "o"], "--set"),
+    ],
+)
+def test_an_empty_value_is_refused(tmp_path, args, option):
+    seq = _tiny(tmp_path / "s", 4)
+    r = _cli("track", seq, *args)
+    assert r.returncode == 1 and not Path("o").exists()
+    _only_line(r.stderr, f"argument {option}: an empty value")
+
+
+@pytest.mark.parametrize(
+    ("item", "needle"),
+    [
+        ("meanshift.search.max_iterations=99999999999999999999", "at most 2147483647"),
+        ("dual.kalman.position_std_px=inf", "must be a finite number"),
+        ("dual.kalman.position_std_px=nan", "must be a finite number"),
+    ],
+)
+def test_numbers_no_parameter_takes_are_refused(tmp_path, item, needle):
+    r = _cli("track", _tiny(tmp_path / "s", 4), "--set", item, "--out", tmp_path / "o")
+    assert r.returncode == 1 and not (tmp_path / "o").exists()
+    _only_line(r.stderr, item.split("=")[0], needle)
+
+
+def test_semicolon_truth_reads_as_commas_and_an_empty_field_is_an_error(tmp_path):
+    from pipeline.io.sequence import open_sequence
+
+    a = _tiny(tmp_path / "a", 5)
+    b = _tiny(tmp_path / "b", 5)
+    for ch in ("visible", "infrared"):
+        (b / f"{ch}.txt").write_text((a / f"{ch}.txt").read_text().replace(",", "; "))
+    ta, tb = open_sequence(a).truth, open_sequence(b).truth
+    assert np.array_equal(ta.boxes["visible"][1], tb.boxes["visible"][1])
+    lines = (a / "visible.txt").read_text().splitlines()
+    lines[2] = lines[2].replace(",", ",,", 1)
+    (a / "visible.txt").write_text("\n".join(lines) + "\n")
+    r = _cli("track", a, "--out", tmp_path / "o")
+    assert r.returncode == 1
+    _only_line(r.stderr, f"{a / 'visible.txt'}:3", "an empty field")
+
+
+def test_duplicate_truth_rows_are_a_warning(tmp_path):
+    seq = _tiny(tmp_path / "s", 4)
+    (seq / "gt.txt").write_text(
+        "1,1,10,10,10,10,1,1,1\n2,1,11,10,10,10,1,1,1\n2,1,30,10,10,10,1,1,1\n"
+        "3,1,12,10,10,10,1,1,1\n4,1,13,10,10,10,1,1,1\n"
+    )
+    r = _cli("track", seq, "--tracker", "meanshift", "--out", tmp_path / "o", "--no-plots")
+    assert r.returncode == 0, r.stderr
+    warns = [ln for ln in r.stderr.splitlines() if ln.startswith("dualtrack: warning:")]
+    assert len(warns) == 1 and "1 duplicate (frame, id) rows, the first frame 2 id 1" in warns[0]
+
+
+def test_a_truncated_png_is_one_line_that_says_what_libpng_said(tmp_path):
+    from tests.conftest import write_boxes, write_frames
+
+    seq = tmp_path / "s"
+    write_frames(seq / "visible", 6, size=(160, 120), ext=".png")
+    write_frames(seq / "infrared", 6, size=(160, 120), color=False, ext=".png")
+    write_boxes(seq / "visible.txt", 6)
+    bad = seq / "visible" / "00004.png"
+    bad.write_bytes(bad.read_bytes()[: bad.stat().st_size // 2])
+    r = _cli("track", seq, "--tracker", "meanshift", "--out", tmp_path / "o", "--no-plots")
+    assert r.returncode == 1
+    _only_line(r.stderr, "unreadable frame 4", str(bad), "(libpng error: ", "first 3 frames")
+
+
+def test_a_file_named_mp4_that_is_no_video_is_one_line_that_says_what_ffmpeg_said(tmp_path):
+    seq = tmp_path / "v"
+    seq.mkdir()
+    for ch in ("visible", "infrared"):
+        (seq / f"{ch}.mp4").write_bytes(bytes(range(256)) * 20)
+    r = _cli("track", seq, "--out", tmp_path / "o")
+    assert r.returncode == 1
+    _only_line(r.stderr, f"cannot open video {seq / 'visible.mp4'}", "FFmpeg: ")
+
+
+def test_a_jpeg_that_decodes_with_a_complaint_gives_one_warning_at_the_end(tmp_path):
+    seq = _tiny(tmp_path / "s", 5)
+    f = sorted((seq / "visible").iterdir())[2]
+    data = f.read_bytes()
+    f.write_bytes(data[: len(data) * 2 // 3] + b"\xff\xd9")
+    r = _cli("track", seq, "--tracker", "meanshift", "--out", tmp_path / "o", "--no-plots")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.splitlines() == [
+        "dualtrack: warning: 1 message from the image/video libraries, the first: Corrupt JPEG "
+        "data: premature end of data segment"
+    ]
+
+
+def test_a_newline_in_a_path_stays_on_one_line(tmp_path):
+    seq = tmp_path / "a\nb"
+    r = _cli("track", seq, "--out", tmp_path / "o")
+    assert r.returncode == 1
+    _only_line(r.stderr, "a\\nb")
+
+
+@pytest.mark.parametrize("kind", ["dangling", "folder", "fifo"])
+def test_an_entry_named_like_a_frame_that_is_no_file_is_named(tmp_path, kind):
+    import os
+
+    seq = _tiny(tmp_path / "s", 5)
+    odd = seq / "infrared" / "00003b.jpg"  # sorts between frames 3 and 4
+    if kind == "dangling":
+        odd.symlink_to(tmp_path / "gone.jpg")
+    elif kind == "folder":
+        odd.mkdir()
+    else:
+        os.mkfifo(odd)
+    r = _cli("track", seq, "--out", tmp_path / "o")
+    assert r.returncode == 1
+    what = {"dangling": "a broken symbolic link", "folder": "a folder", "fifo": "a FIFO"}[kind]
+    _only_line(r.stderr, f"frame 4: {odd} is {what}")
+
+
+def test_batch_with_a_failed_sequence_says_so_on_stderr(tmp_path):
+    root = tmp_path / "root"
+    _tiny(root / "good", 4)
+    bad = _tiny(root / "bad", 4)
+    (bad / "visible" / "00002.jpg").write_bytes(b"")
+    r = _cli("batch", root, "--out", tmp_path / "out", "--trackers", "meanshift", "--no-plots")
+    assert r.returncode == 1
+    _only_line(r.stderr, "1 of 2 sequences failed", "bad", "00002.jpg", "report.md")
+
+
+def test_bench_with_a_failed_sequence_says_so_on_stderr(tmp_path):
+    good = _tiny(tmp_path / "good", 4)
+    bad = _tiny(tmp_path / "bad", 4)
+    (bad / "visible" / "00002.jpg").write_bytes(b"")
+    r = _cli("bench", bad, good, "--trackers", "meanshift")
+    assert r.returncode == 1
+    _only_line(r.stderr, "1 of 2 runs failed", "bad", "00002.jpg")
+
+
+def test_a_run_folder_removed_mid_run_is_said_so(tmp_path, long_scene):
+    import shutil
+
+    run = tmp_path / "run"
+    p = _start("track", long_scene, "--tracker", "mil", "--out", run)
+    _wait_frames(run, 16, p)
+    shutil.rmtree(run)
+    _out, err = p.communicate(timeout=120)
+    assert p.returncode == 1
+    _only_line(err, f"the run folder {run} was removed during the run")

@@ -7,6 +7,7 @@ Nothing is cached: a 10 000-frame sequence holds only its list of file names.
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ import cv2
 import numpy as np
 
 from pipeline.errors import InputError
+from pipeline.libmsg import library_says
 
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 VIDEO_EXTENSIONS = (".mp4", ".avi", ".mov", ".mkv", ".mpg", ".mpeg", ".wmv", ".m4v", ".webm")
@@ -44,9 +46,37 @@ def natural_key(name: str) -> list[object]:
 
 
 def list_images(folder: Path) -> list[Path]:
-    """Image files directly inside ``folder``, in natural sorted order."""
-    files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
-    return sorted(files, key=lambda p: natural_key(p.name))
+    """Image files directly inside ``folder``, in natural sorted order.
+
+    Raises
+    ------
+    InputError
+        When an entry named like a frame (an image extension) is not a readable file: a
+        folder, a broken symbolic link, a FIFO or device (reading one would block). Skipping
+        it would shift every later frame against the other channel and the truth.
+    """
+    named = sorted(
+        (p for p in folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS),
+        key=lambda p: natural_key(p.name),
+    )
+    for i, p in enumerate(named):
+        if not p.is_file():
+            raise InputError(f"frame {i + 1}: {p} is {_what_it_is(p)}, not an image file")
+    return named
+
+
+def _what_it_is(path: Path) -> str:
+    if path.is_symlink() and not path.exists():
+        return f"a broken symbolic link (to {os.readlink(path)})"
+    if path.is_dir():
+        return "a folder"
+    if path.is_fifo():
+        return "a FIFO"
+    if path.is_socket():
+        return "a socket"
+    if path.is_char_device() or path.is_block_device():
+        return "a device"
+    return "not a regular file"
 
 
 class ImageListSource:
@@ -88,7 +118,9 @@ class ImageListSource:
         except cv2.error:
             image = None
         if image is None or image.size == 0:
-            raise InputError(f"unreadable frame {index0 + 1}: {path} is not a decodable image")
+            raise InputError(
+                f"unreadable frame {index0 + 1}: {path} is not a decodable image{library_says()}"
+            )
         if image.ndim == 3 and image.shape[2] == 4:
             image = cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
         media = _MEDIA_TYPES.get(path.suffix.lower())
@@ -108,7 +140,8 @@ class VideoSource:
         self.path = path
         cap = cv2.VideoCapture(str(path))
         if not cap.isOpened():
-            raise InputError(f"cannot open video {path} (OpenCV VideoCapture failed)")
+            said = library_says()
+            raise InputError(f"cannot open video {path}{said or ' (OpenCV VideoCapture failed)'}")
         self._count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
         self.fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
         cap.release()
@@ -136,7 +169,9 @@ class VideoSource:
             for i in range(start0, self._count):
                 ok, image = cap.read()
                 if not ok or image is None:
-                    raise InputError(f"video {self.path}: frame {i + 1} cannot be decoded")
+                    raise InputError(
+                        f"video {self.path}: frame {i + 1} cannot be decoded{library_says()}"
+                    )
                 yield RawFrame(image, None)
         finally:
             cap.release()

@@ -24,14 +24,18 @@ import numpy as np
 
 from pipeline.errors import InputError
 
-_SPLIT = re.compile(r"[,\s;]+")
+_SPLIT = re.compile(r"\s*[,;]\s*|\s+")  # one comma or semicolon, or a run of blanks
 MOT_BASE = 1.0
 """Coordinate of the first pixel's corner in MOTChallenge files (``gt.txt``, ``det.txt``,
 ``tracks.csv``)."""
 
 
 def _numbers(path: Path, lineno: int, line: str) -> list[float]:
-    parts = [p for p in _SPLIT.split(line.strip()) if p]
+    parts = _SPLIT.split(line.strip().rstrip(",;").strip())
+    if "" in parts:
+        raise InputError(
+            f"{path}:{lineno}: malformed ground truth, an empty field (two separators in a row)"
+        )
     try:
         return [float(p) for p in parts]
     except ValueError:
@@ -132,6 +136,7 @@ class MotTruth:
     distractors: dict[int, np.ndarray] = field(
         default_factory=dict
     )  # DISTRACTOR_CLASSES rows, (N, 4) per id
+    duplicates: tuple[tuple[int, int], ...] = ()  # (frame, id) of rows that repeat an earlier one
 
 
 DISTRACTOR_CLASSES = (2, 7, 8, 12)
@@ -180,6 +185,7 @@ def _mot_rows(
 def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
     """Parse a MOTChallenge ``gt.txt``.
 
+    A (frame, id) given twice keeps its last row; ``MotTruth.duplicates`` lists the repeats.
     Rows with flag 0 are not truth, as MOTChallenge reads them; those of a distractor class
     (:data:`DISTRACTOR_CLASSES`, class column 8 in the random scenes: objects that are not
     targets) go to ``MotTruth.distractors``, which the many-target scores use as TrackEval
@@ -189,8 +195,13 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
     vis: dict[int, np.ndarray] = {}
     distractors: dict[int, np.ndarray] = {}
     last = 0
+    seen: set[tuple[int, int]] = set()
+    dup: list[tuple[int, int]] = []
     for frame, tid, box, flag, cls, v in _mot_rows(path, base):
         last = max(last, frame)
+        if (frame, tid) in seen:
+            dup.append((frame, tid))
+        seen.add((frame, tid))
         if frame > n_frames:
             continue
         if cls in DISTRACTOR_CLASSES:
@@ -210,6 +221,7 @@ def parse_mot_truth(path: Path, n_frames: int, base: float = 1.0) -> MotTruth:
         dict(sorted(vis.items())),
         last,
         dict(sorted(distractors.items())),
+        tuple(dup),
     )
 
 

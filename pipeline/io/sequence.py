@@ -668,6 +668,12 @@ def _load_truth(
                 f"{mot} has rows up to frame {mt.last_frame} for a sequence of {n} frames "
                 "(ignored)"
             )
+        if mt.duplicates:
+            f, t = mt.duplicates[0]
+            warnings.append(
+                f"{mot}: {len(mt.duplicates)} duplicate (frame, id) rows, the first frame {f} "
+                f"id {t}; the last row of each counts"
+            )
         boxes = {c: mt.boxes for c in sources}
         return Truth(
             boxes,
