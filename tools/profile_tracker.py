@@ -1,0 +1,203 @@
+"""Where a tracker's time goes: ms a frame per part, and how much of it is compiled code.
+
+The tracker alone runs over frames decoded beforehand (no decoding, no sinks), once to warm
+up and once under ``cProfile``; each function's own time is charged to the part of the
+tracker its module belongs to (:data:`PARTS`), and counted as *compiled* when it is a C
+function (NumPy, SciPy, OpenCV) or a Numba kernel (each kernel is wrapped in a named Python
+function for the run, so its time is its own). The rest is the Python layer. Profiling adds
+its own cost to every Python call, so the Python share here is an upper bound; the total is
+also printed as the unprofiled CPU time of the same loop.
+
+Usage::
+
+    python tools/profile_tracker.py                   # the eight named scenes, dual
+    python tools/profile_tracker.py --scenes fast --tracker meanshift
+    python tools/profile_tracker.py --seq path/to/sequence --frames 200
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+NAMED = (
+    "shadows",
+    "dusk",
+    "approach",
+    "lookalike",
+    "hot-distractor",
+    "crossover",
+    "occluder",
+    "fast",
+)
+
+PARTS = (
+    ("filter", ("stages/appearance", "trackers/dual/appearance", "scipy/fft", "numpy/fft")),
+    ("level set", ("stages/levelset", "stages/contour", "trackers/dual/contour")),
+    ("mean shift", ("stages/meanshift", "stages/histogram", "trackers/dual/colour")),
+    ("colour extent", ("stages/extent", "trackers/dual/size")),
+    ("Kalman", ("stages/kalman", "trackers/dual/motion", "stages/motion")),
+    ("detection", ("stages/detection", "trackers/dual/redetect")),
+    ("decision", ("trackers/dual/decide", "trackers/dual/group", "trackers/dual/lifecycle")),
+)
+"""Part of the tracker -> path fragments of the modules whose functions it charges. A C
+function is charged to the part of the Python function that called it."""
+
+
+def _part_of(filename: str) -> str | None:
+    f = filename.replace("\\", "/")
+    for part, frags in PARTS:
+        if any(fr in f for fr in frags):
+            return part
+    return None
+
+
+def _wrap_kernels() -> list[tuple[object, str, object]]:
+    """Replace every Numba dispatcher in the pipeline's modules by a Python function named
+    ``<kernel>`` defined in that module (so cProfile sees the kernel's time as one call);
+    returns what to put back."""
+    import numba.core.registry
+
+    undo = []
+    for name, mod in list(sys.modules.items()):
+        if not name.startswith("pipeline") or mod is None:
+            continue
+        for attr, obj in list(vars(mod).items()):
+            if isinstance(obj, numba.core.registry.CPUDispatcher):
+                src = f"def {attr}(*a, **k):\n    return _kernel(*a, **k)\n"
+                ns = {"_kernel": obj}
+                code = compile(src, f"<compiled {mod.__file__}>", "exec")
+                exec(code, ns)
+                setattr(mod, attr, ns[attr])
+                undo.append((mod, attr, obj))
+    return undo
+
+
+def _engine(seq: object, tracker: str) -> object:
+    from pipeline.config import PipelineConfig
+    from pipeline.trackers import make_tracker
+    from pipeline.trackers.base import attach_sequence
+
+    engine = make_tracker(tracker, PipelineConfig())
+    attach_sequence(engine, seq)
+    return engine
+
+
+def _loop(engine: object, pairs: list, targets: list) -> None:
+    engine.start(pairs[0], targets)  # type: ignore[attr-defined]
+    for p in pairs[1:]:
+        engine.step(p)  # type: ignore[attr-defined]
+
+
+def profile(seq_dir: Path, tracker: str, frames: int | None) -> dict[str, object]:
+    """Profile ``tracker`` on ``seq_dir``: ``{"frames", "cpu_ms", "parts": {part: (ms,
+    compiled ms)}}``, ms a frame (``start`` on frame 1 not counted in the CPU time)."""
+    from pipeline.io.init import resolve_init
+    from pipeline.io.sequence import open_sequence
+
+    seq = open_sequence(seq_dir)
+    pairs = list(seq.frames(1, frames))
+    targets = resolve_init(seq, None)
+    _loop(_engine(seq, tracker), pairs, targets)  # warm-up: kernels compiled, caches filled
+    engine = _engine(seq, tracker)
+    engine.start(pairs[0], targets)  # type: ignore[attr-defined]
+    c0 = time.process_time()
+    for p in pairs[1:]:
+        engine.step(p)  # type: ignore[attr-defined]
+    cpu = time.process_time() - c0
+    undo = _wrap_kernels()
+    try:
+        engine = _engine(seq, tracker)
+        engine.start(pairs[0], targets)  # type: ignore[attr-defined]
+        prof = cProfile.Profile()
+        prof.enable()
+        for p in pairs[1:]:
+            engine.step(p)  # type: ignore[attr-defined]
+        prof.disable()
+    finally:
+        for mod, attr, obj in undo:
+            setattr(mod, attr, obj)
+    n = len(pairs) - 1
+    return {"frames": n, "cpu_ms": 1000 * cpu / n, "parts": _charge(prof, n)}
+
+
+def _charge(prof: cProfile.Profile, n: int) -> dict[str, tuple[float, float]]:
+    st = pstats.Stats(prof)
+    own: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
+    for (filename, _line, _name), (_cc, _nc, tt, _ct, callers) in st.stats.items():  # type: ignore[attr-defined]
+        compiled = filename == "~" or filename.startswith("<compiled ")
+        part = _part_of(filename)
+        if part is None and filename == "~":  # a C function: the part of its callers
+            by = defaultdict(float)
+            for (cf, _cl, _cn), c in callers.items():
+                by[_part_of(cf) or "glue"] += c[2]
+            total = sum(by.values()) or 1.0
+            for p, t in by.items():
+                own[p][0] += tt * t / total
+                own[p][1] += tt * t / total
+            continue
+        if filename.startswith("<compiled "):
+            part = _part_of(filename[len("<compiled ") :]) or "glue"
+        part = part or "glue"
+        own[part][0] += tt
+        if compiled:
+            own[part][1] += tt
+    return {p: (1000 * a / n, 1000 * b / n) for p, (a, b) in own.items()}
+
+
+def table(results: dict[str, dict[str, object]]) -> str:
+    """The mean over scenes, as a Markdown table."""
+    parts: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
+    cpu = 0.0
+    for r in results.values():
+        cpu += r["cpu_ms"] / len(results)  # type: ignore[operator]
+        for p, (ms, comp) in r["parts"].items():  # type: ignore[union-attr]
+            parts[p][0] += ms / len(results)
+            parts[p][1] += comp / len(results)
+    order = [p for p, _ in PARTS] + ["glue"]
+    total = sum(v[0] for v in parts.values())
+    comp = sum(v[1] for v in parts.values())
+    lines = [
+        "| part | ms a frame (profiled) | compiled |",
+        "|---|---|---|",
+    ]
+    for p in order:
+        if p in parts:
+            ms, c = parts[p]
+            lines.append(f"| {p} | {ms:.3f} | {100 * c / ms if ms else 0:.0f} % |")
+    lines.append(f"| **all (profiled)** | {total:.3f} | {100 * comp / total:.0f} % |")
+    lines.append(f"| **all (unprofiled CPU time)** | {cpu:.3f} | |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--tracker", default="dual")
+    ap.add_argument("--scenes", nargs="*", default=list(NAMED), help="named synthetic scenes")
+    ap.add_argument("--seq", type=Path, action="append", help="a sequence folder instead")
+    ap.add_argument("--frames", type=int, default=None, help="only the first N frames")
+    a = ap.parse_args()
+    from pipeline.synthetic import synthesize
+
+    results: dict[str, dict[str, object]] = {}
+    with tempfile.TemporaryDirectory(prefix="dualtrack-profile-") as tmp:
+        seqs = list(a.seq or [])
+        if not a.seq:
+            seqs = [synthesize(s, Path(tmp) / s, seed=0, progress=False) for s in a.scenes]
+        for seq in seqs:
+            results[Path(seq).name] = r = profile(Path(seq), a.tracker, a.frames)
+            print(f"{Path(seq).name}: {r['cpu_ms']:.3f} ms a frame (CPU)", file=sys.stderr)
+    print(table(results))
+
+
+if __name__ == "__main__":
+    main()
