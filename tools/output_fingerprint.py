@@ -8,7 +8,8 @@ seeds 0 and 2, the four multi-target scenes with seed 0 and three scenes of the 
 development range, runs ``dual`` on each (no .rrd, no plots), then the variants of :data:`VARIANTS`
 on some of them (the paper's configuration, merge handling, one channel, the other engines of the
 project), and prints the SHA-256 of every ``targets.csv``. ``--save FILE`` writes them as JSON;
-``--check FILE`` compares with a saved set and exits 1 naming the runs whose output differs.
+``--check FILE`` compares with a saved set and exits 1 naming the runs whose output differs, with
+how their scores moved (P@20, AUC, IDF1 from ``summary.json``) and the mean change over all runs.
 ``--only`` limits the runs to some keys (``fast-s0,group3-s0``).
 
 Why: the tracker's output is sensitive to float32 rounding in the level set (a rounding-level
@@ -85,16 +86,29 @@ def _scene(scenes_dir: Path, name: str) -> Path:
     return seq
 
 
-def fingerprints(scenes_dir: Path, only: set[str] | None = None) -> dict[str, str]:
-    """``{key: sha256 of targets.csv}`` for every run of :func:`all_keys` (or those in
-    ``only``)."""
+SCORES = ("p20", "auc", "idf1")
+
+
+def _scores(summary: dict) -> dict[str, float]:
+    """The run's scores of :data:`SCORES` (NaN where it has none)."""
+    ev = summary.get("metrics") or {}
+    out = {}
+    for k in SCORES:
+        v = ev.get(k, summary.get(k))
+        out[k] = float(v) if isinstance(v, int | float) else float("nan")
+    return out
+
+
+def fingerprints(scenes_dir: Path, only: set[str] | None = None) -> dict[str, dict]:
+    """``{key: {"sha": sha256 of targets.csv, "p20", "auc", "idf1"}}`` for every run of
+    :func:`all_keys` (or those in ``only``)."""
     import cv2
 
     from pipeline.run import RunOptions, run_track
 
     cv2.setNumThreads(1)
     root = Path(__file__).resolve().parents[1]
-    out: dict[str, str] = {}
+    out: dict[str, dict] = {}
     with tempfile.TemporaryDirectory(prefix="dualtrack-fingerprint-") as tmp:
         for key in all_keys():
             if only is not None and key not in only:
@@ -116,8 +130,10 @@ def fingerprints(scenes_dir: Path, only: set[str] | None = None) -> dict[str, st
                 progress=False,
             )
             run_track(_scene(scenes_dir, scene), opts)
-            out[key] = hashlib.sha256((opts.out_dir / "targets.csv").read_bytes()).hexdigest()
-            print(f"{key:32s} {out[key][:16]}", flush=True)
+            sha = hashlib.sha256((opts.out_dir / "targets.csv").read_bytes()).hexdigest()
+            summary = json.loads((opts.out_dir / "summary.json").read_text())
+            out[key] = {"sha": sha, **_scores(summary)}
+            print(f"{key:32s} {sha[:16]}", flush=True)
     return out
 
 
@@ -145,15 +161,38 @@ def main() -> int:
         a.save.write_text(json.dumps(got, indent=1) + "\n")
         print(f"saved {len(got)} fingerprints to {a.save}")
     if a.check is not None:
-        want = json.loads(a.check.read_text())
+        want = {
+            k: v if isinstance(v, dict) else {"sha": v}
+            for k, v in json.loads(a.check.read_text()).items()
+        }
         if only is not None:
             want = {k: v for k, v in want.items() if k in only}
-        diff = sorted(k for k in set(want) | set(got) if want.get(k) != got.get(k))
+        diff = sorted(
+            k for k in set(want) | set(got) if want.get(k, {}).get("sha") != got.get(k, {})["sha"]
+        )
         if diff:
             print("output differs: " + ", ".join(diff), file=sys.stderr)
+            _moves(want, got, diff)
             return 1
         print(f"all {len(got)} runs byte-identical")
     return 0
+
+
+def _moves(want: dict[str, dict], got: dict[str, dict], diff: list[str]) -> None:
+    """How the differing runs' scores moved, and the mean change over every run."""
+    if not all("p20" in want.get(k, {}) for k in diff):
+        return  # a fingerprint file of hashes only
+    print(f"{'run':32s} " + " ".join(f"{'d' + k:>8s}" for k in SCORES), file=sys.stderr)
+    for k in diff:
+        d = [got[k][s] - want[k][s] for s in SCORES]
+        print(f"{k:32s} " + " ".join(f"{v:+8.3f}" for v in d), file=sys.stderr)
+    both = [k for k in got if k in want]
+    mean = []
+    for s in SCORES:
+        vals = [got[k][s] - want[k][s] for k in both if got[k][s] == got[k][s]]
+        mean.append(sum(vals) / max(len(vals), 1))
+    label = f"mean over {len(both)} runs"
+    print(f"{label:32s} " + " ".join(f"{v:+8.4f}" for v in mean), file=sys.stderr)
 
 
 if __name__ == "__main__":

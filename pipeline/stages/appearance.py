@@ -1,7 +1,8 @@
 """A spatial appearance cue: a discriminative correlation filter learned online over both channels.
 
 This is the DCF of the MOSSE / DSST family (Bolme et al. 2010; Danelljan et al. 2014, 2017),
-written on numpy's FFTs:
+written on SciPy's FFTs, with the per-cell work (features, correlation, peak) in compiled
+kernels:
 
 * **Features** (:func:`features`): on a window around the target, resized so that it holds
   ``template_cells`` cells of ``cell_px`` px along its longer side, per cell a histogram of
@@ -35,6 +36,7 @@ from functools import cache
 import cv2
 import numba
 import numpy as np
+import scipy.fft as fft
 
 from pipeline.params import Section, param
 from pipeline.types import BBox
@@ -145,23 +147,32 @@ class AppearanceConfig(Section):
 # ---------------------------------------------------------------------------------------- features
 
 
-@numba.njit(cache=True, inline="always", nogil=True)
-def _orientation(gx: float, gy: float) -> float:  # pragma: no cover (compiled)
-    """Unsigned gradient orientation in [0, pi), by a polynomial atan (error under 0.002 rad; a bin
-    is 0.35)."""
-    ax, ay = abs(gx), abs(gy)
-    mx, mn = (ax, ay) if ax >= ay else (ay, ax)
-    a = mn / mx if mx > 0.0 else 0.0
-    s = a * a
-    r = ((-0.0464964749 * s + 0.15931422) * s - 0.327622764) * s * a + a
-    if ay > ax:
-        r = 1.5707963267948966 - r
-    if (gx < 0.0) != (gy < 0.0):  # second or fourth quadrant: the unsigned angle is pi - r
-        r = 3.141592653589793 - r
-    return r if r < 3.141592653589793 else 0.0
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _row_gradients(
+    g: np.ndarray, y: int, W: int, bins: int, mag: np.ndarray, pos: np.ndarray
+) -> None:  # pragma: no cover (compiled)
+    """Row ``y`` of a float32 image: gradient magnitude and orientation bin position (unsigned
+    orientation in [0, pi) by a polynomial atan, error under 0.002 rad against a bin's 0.35, times
+    ``bins / pi``, minus 0.5) of every pixel but the first and last. Branch-free, so that it
+    runs in vector registers (``error_model="numpy"``: no zero test before the division, which
+    guards itself)."""
+    for x in range(1, W - 1):
+        gx = g[y, x + 1] - g[y, x - 1]
+        gy = g[y + 1, x] - g[y - 1, x]
+        mag[x] = np.sqrt(gx * gx + gy * gy)
+        ax, ay = abs(gx), abs(gy)
+        mx, mn = max(ax, ay), min(ax, ay)
+        a = mn / mx if mx > 0.0 else 0.0
+        s = a * a
+        r = ((-0.0464964749 * s + 0.15931422) * s - 0.327622764) * s * a + a
+        r = 1.5707963267948966 - r if ay > ax else r
+        # second or fourth quadrant: the unsigned angle is pi - r
+        r = 3.141592653589793 - r if (gx < 0.0) != (gy < 0.0) else r
+        r = r if r < 3.141592653589793 else 0.0
+        pos[x] = r * (bins / 3.141592653589793) - 0.5
 
 
-@numba.njit(cache=True, boundscheck=False, nogil=True)
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
 def _hog_cells(
     grey: np.ndarray, cell: int, bins: int, clip: float
 ) -> np.ndarray:  # pragma: no cover (compiled)
@@ -169,33 +180,26 @@ def _hog_cells(
     multiples of cell."""
     H, W = grey.shape
     hc, wc = H // cell, W // cell
-    # flat arrays and unsigned offsets: numba then tests no index for wrapping around (twice as
-    # fast, same sums)
-    flat = np.zeros(hc * wc * bins, np.float32)
-    g = grey.ravel()
-    nb, wu, one = np.uint64(bins), np.uint64(W), np.uint64(1)
+    hist = np.zeros((hc, wc, bins), np.float32)
+    mag = np.zeros(W, np.float32)
+    pos = np.zeros(W, np.float64)
     for y in range(1, H - 1):
-        row = np.uint64(y * W)
-        cyo = np.uint64((y // cell) * wc)
+        _row_gradients(grey, y, W, bins, mag, pos)
+        cy = y // cell
         for x in range(1, W - 1):
-            i = row + np.uint64(x)
-            gx = g[i + one] - g[i - one]
-            gy = g[i + wu] - g[i - wu]
-            mag = np.sqrt(gx * gx + gy * gy)
-            if mag <= 0.0:
+            m = mag[x]
+            if m <= 0.0:
                 continue
-            pos = _orientation(gx, gy) * (bins / 3.141592653589793) - 0.5
-            b0 = int(np.floor(pos))
-            f = pos - b0
+            b0 = int(np.floor(pos[x]))
+            f = pos[x] - b0
             b1 = b0 + 1
             if b0 < 0:
                 b0 += bins
             if b1 >= bins:
                 b1 -= bins
-            base = (cyo + np.uint64(x // cell)) * nb
-            flat[base + np.uint64(b0)] += mag * (1.0 - f)
-            flat[base + np.uint64(b1)] += mag * f
-    hist = flat.reshape((hc, wc, bins))
+            cx = x // cell
+            hist[cy, cx, b0] += m * (1.0 - f)
+            hist[cy, cx, b1] += m * f
     energy = np.zeros((hc, wc), np.float32)
     for cy in range(hc):
         for cx in range(wc):
@@ -240,6 +244,80 @@ def channel_names(cfg: AppearanceConfig, visible: bool, infrared: bool) -> tuple
     return tuple(names)
 
 
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _cell_means(
+    img: np.ndarray, ch: int, cell: int, scale: float, offset: float, out: np.ndarray, oc: int
+) -> None:  # pragma: no cover (compiled)
+    """``out[..., oc]`` = per-cell mean of channel ``ch`` of ``img`` (H, W, K) times ``scale``
+    minus ``offset``."""
+    hc, wc = out.shape[0], out.shape[1]
+    inv = 1.0 / (cell * cell)
+    for cy in range(hc):
+        for cx in range(wc):
+            acc = 0.0
+            for y in range(cy * cell, cy * cell + cell):
+                for x in range(cx * cell, cx * cell + cell):
+                    acc += img[y, x, ch]
+            out[cy, cx, oc] = np.float32(acc * inv * scale - offset)
+
+
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _window_features(
+    lab: np.ndarray,
+    ir: np.ndarray,
+    cell: int,
+    bins: int,
+    clip: np.float32,
+    colour_weight: float,
+    vis_gradients: bool,
+    colour: bool,
+    infrared: bool,
+) -> np.ndarray:  # pragma: no cover (compiled)
+    """The channels of :func:`features` in one pass: ``lab`` (H, W, 3) uint8 CIELAB or an empty
+    array, ``ir`` (H, W, 1) uint8 or an empty array."""
+    use_vis = lab.shape[0] > 0
+    use_ir = ir.shape[0] > 0 and infrared
+    H, W = (lab.shape[0], lab.shape[1]) if use_vis else (ir.shape[0], ir.shape[1])
+    hc, wc = H // cell, W // cell
+    C = 0
+    if use_vis:
+        C += bins * vis_gradients + 3 * colour
+    if use_ir:
+        C += bins + 1
+    out = np.empty((hc, wc, C), np.float32)
+    k = 0
+    s255 = np.float32(1.0 / 255.0)
+    if use_vis:
+        if vis_gradients:
+            out[:, :, k : k + bins] = _hog_cells(
+                lab[:, :, 0].astype(np.float32) * s255, cell, bins, clip
+            )
+            k += bins
+        if colour:
+            _cell_means(lab, 0, cell, 1.0 / 255.0, 0.5, out, k)
+            _cell_means(lab, 1, cell, colour_weight / 255.0, 0.5 * colour_weight, out, k + 1)
+            _cell_means(lab, 2, cell, colour_weight / 255.0, 0.5 * colour_weight, out, k + 2)
+            k += 3
+    if use_ir:
+        grey = ir[:, :, 0].astype(np.float32) * s255
+        out[:, :, k : k + bins] = _hog_cells(grey, cell, bins, clip)
+        k += bins
+        _cell_means(ir, 0, cell, 1.0 / 255.0, 0.0, out, k)
+        m = 0.0
+        for cy in range(hc):
+            for cx in range(wc):
+                m += out[cy, cx, k]
+        m /= hc * wc
+        for cy in range(hc):
+            for cx in range(wc):
+                out[cy, cx, k] -= np.float32(m)
+    return out
+
+
+_NO_LAB = np.zeros((0, 0, 3), np.uint8)
+_NO_IR = np.zeros((0, 0, 1), np.uint8)
+
+
 def features(vis: np.ndarray | None, ir: np.ndarray | None, cfg: AppearanceConfig) -> np.ndarray:
     """Per-cell features ``(Hc, Wc, C)`` float32 of patches already resized to a multiple of
     ``cell_px``.
@@ -247,29 +325,22 @@ def features(vis: np.ndarray | None, ir: np.ndarray | None, cfg: AppearanceConfi
     ``vis`` is ``(H, W, 3)`` uint8 BGR or None, ``ir`` ``(H, W)`` uint8 or None; the
     channels are those of :func:`channel_names`, in that order.
     """
-    c = cfg.cell_px
-    parts: list[np.ndarray] = []
-    shape = None
-    if vis is not None:
-        H, W = vis.shape[:2]
-        shape = (W // c, H // c)
-        lab = cv2.cvtColor(vis, cv2.COLOR_BGR2LAB).astype(np.float32) * np.float32(1.0 / 255.0)
-        if cfg.visible_gradients:
-            parts.append(hog(lab[..., 0], cfg))
-        if cfg.colour:
-            cellmean = cv2.resize(lab, shape, interpolation=cv2.INTER_AREA) - np.float32(0.5)
-            cellmean[..., 1:] *= np.float32(cfg.colour_weight)
-            parts.append(cellmean)
-    if ir is not None and cfg.infrared:
-        H, W = ir.shape[:2]
-        shape = (W // c, H // c)
-        g = ir.astype(np.float32) * np.float32(1.0 / 255.0)
-        parts.append(hog(g, cfg))
-        m = cv2.resize(g, shape, interpolation=cv2.INTER_AREA)[..., None]
-        parts.append(m - np.float32(m.mean()))
-    if not parts:
+    if vis is None and (ir is None or not cfg.infrared):
         raise ValueError("features need at least one channel")
-    return np.ascontiguousarray(np.concatenate(parts, axis=2))
+    if vis is not None and not (cfg.visible_gradients or cfg.colour) and ir is None:
+        raise ValueError("features need at least one channel")
+    lab = cv2.cvtColor(vis, cv2.COLOR_BGR2LAB) if vis is not None else _NO_LAB
+    return _window_features(
+        lab,
+        ir[:, :, None] if ir is not None else _NO_IR,
+        cfg.cell_px,
+        cfg.hog_bins,
+        np.float32(cfg.hog_clip),
+        float(cfg.colour_weight),
+        cfg.visible_gradients,
+        cfg.colour,
+        cfg.infrared,
+    )
 
 
 # ---------------------------------------------------------------------------------------- geometry
@@ -393,12 +464,43 @@ def _patches(
     )
 
 
+@cache
 def channel_groups(cfg: AppearanceConfig, visible: bool, infrared: bool) -> np.ndarray:
     """Group index per feature channel: visible gradients, visible colour, IR gradients, IR
     intensity."""
     names = channel_names(cfg, visible, infrared)
     kind = {"vis-hog": 0, "vis-L": 1, "vis-a": 1, "vis-b": 1, "ir-hog": 2, "ir-I": 3}
-    return np.array([kind[n.rstrip("0123456789")] for n in names])
+    groups = np.array([kind[n.rstrip("0123456789")] for n in names])
+    groups.flags.writeable = False  # shared by every call (cached)
+    return groups
+
+
+@cache
+def _clipped(cfg: AppearanceConfig, visible: bool, infrared: bool) -> np.ndarray:
+    """Per channel: clipped at ``intensity_clip`` (the colour and IR intensity channels)."""
+    groups = channel_groups(cfg, visible, infrared)
+    out = ((groups == 1) | (groups == 3)) & (cfg.balance_groups and cfg.intensity_clip > 0)
+    out.flags.writeable = False
+    return out
+
+
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _weigh(
+    f: np.ndarray, gains: np.ndarray, clipped: np.ndarray, limit: float, hann: np.ndarray
+) -> np.ndarray:  # pragma: no cover (compiled)
+    """``f * gains``, the ``clipped`` channels clipped to +-``limit``, times the window."""
+    h, w, C = f.shape
+    out = np.empty((h, w, C), np.float32)
+    lim = np.float32(limit)
+    for y in range(h):
+        for x in range(w):
+            win = hann[y, x, 0]
+            for c in range(C):
+                v = f[y, x, c] * gains[c]
+                if clipped[c]:
+                    v = min(max(v, -lim), lim)
+                out[y, x, c] = v * win
+    return out
 
 
 def group_gains(f: np.ndarray, groups: np.ndarray) -> np.ndarray:
@@ -420,16 +522,19 @@ def _translation_spectra(
     features)."""
     v, i = _patches(vis, ir, win.box, win.template)
     f = features(v, i, cfg)
-    groups = channel_groups(cfg, vis is not None, ir is not None)
     if gains is None:
+        groups = channel_groups(cfg, vis is not None, ir is not None)
         gains = group_gains(f, groups) if cfg.balance_groups else np.ones(f.shape[2], np.float32)
-    g = f * gains
-    if cfg.balance_groups and cfg.intensity_clip > 0:
-        # a far hotter (or brighter) neighbour entering the window must not outweigh the target by
-        # its energy
-        lev = (groups == 1) | (groups == 3)
-        g[..., lev] = np.clip(g[..., lev], -cfg.intensity_clip, cfg.intensity_clip)
-    return np.fft.rfft2(g * _hann(f.shape[0], f.shape[1]), axes=(0, 1)), gains
+    # a far hotter (or brighter) neighbour entering the window must not outweigh the target by
+    # its energy: the intensity channels are clipped
+    g = _weigh(
+        f,
+        gains,
+        _clipped(cfg, vis is not None, ir is not None),
+        cfg.intensity_clip,
+        _hann(f.shape[0], f.shape[1]),
+    )
+    return fft.rfft2(g, axes=(0, 1)), gains
 
 
 @cache
@@ -451,7 +556,7 @@ def _scale_label_fft(count: int) -> np.ndarray:
     return np.fft.rfft(np.fft.ifftshift(g))
 
 
-@numba.njit(cache=True, boundscheck=False, nogil=True)
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
 def _scale_hog(
     img: np.ndarray,
     ox: float,
@@ -588,7 +693,7 @@ def train(
     den = np.sum((F * np.conj(F)).real, axis=2)
     st = like.scale_template if like is not None else scale_template((box.w, box.h), cfg)
     if cfg.scale_filter and scale:
-        Fs = np.fft.rfft(_scale_samples(vis, ir, box.center, (box.w, box.h), cfg, st), axis=1)
+        Fs = fft.rfft(_scale_samples(vis, ir, box.center, (box.w, box.h), cfg, st), axis=1)
         s_num, s_den = (
             np.conj(_scale_label_fft(cfg.scale_count))[None, :] * Fs,
             np.sum((Fs * np.conj(Fs)).real, axis=0),
@@ -620,33 +725,91 @@ def _sigmas(box: BBox, win: Window, cfg: AppearanceConfig) -> tuple[float, float
     return (max(s, 0.5), max(s, 0.5))
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy", nogil=True)
+def _refine(a: float, b: float, c: float) -> float:  # pragma: no cover (compiled)
+    """Sub-cell offset of a peak ``b`` between ``a`` and ``c`` (a parabola), in [-0.5, 0.5]."""
+    d = a - 2 * b + c
+    return 0.0 if d >= 0 else min(max(0.5 * (a - c) / d, -0.5), 0.5)
+
+
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _peak(r: np.ndarray) -> tuple[float, float, float, int, int]:  # pragma: no cover (compiled)
+    """Peak of a response map (the first maximum): (dy, dx) sub-cell displacement from the
+    centre cell, value, and its cell."""
+    h, w = r.shape
+    iy, ix = 0, 0
+    best = r[0, 0]
+    for y in range(h):
+        for x in range(w):
+            if r[y, x] > best:
+                best, iy, ix = r[y, x], y, x
+    dy = _refine(r[(iy - 1) % h, ix], best, r[(iy + 1) % h, ix])
+    dx = _refine(r[iy, (ix - 1) % w], best, r[iy, (ix + 1) % w])
+    return float(iy + dy - h // 2), float(ix + dx - w // 2), float(best), iy, ix
+
+
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _psr(r: np.ndarray, iy: int, ix: int, exclude: int) -> float:  # pragma: no cover (compiled)
+    h, w = r.shape
+    n, total = 0, 0.0
+    for y in range(h):
+        near_y = (y - iy + exclude) % h <= 2 * exclude
+        for x in range(w):
+            if near_y and (x - ix + exclude) % w <= 2 * exclude:
+                continue
+            total += r[y, x]
+            n += 1
+    if n == 0:
+        return 0.0
+    mean = total / n
+    var = 0.0
+    for y in range(h):
+        near_y = (y - iy + exclude) % h <= 2 * exclude
+        for x in range(w):
+            if near_y and (x - ix + exclude) % w <= 2 * exclude:
+                continue
+            var += (r[y, x] - mean) ** 2
+    sd = np.sqrt(var / n)
+    return (r[iy, ix] - mean) / sd if sd > 1e-12 else 0.0
+
+
 def _peak_offset(r: np.ndarray) -> tuple[float, float, float, int, int]:
     """Peak of a response map: (dy, dx) sub-cell displacement from the centre cell, value, and its
     cell."""
-    h, w = r.shape
-    iy, ix = np.unravel_index(int(np.argmax(r)), r.shape)
-    peak = float(r[iy, ix])
-
-    def refine(a: float, b: float, c: float) -> float:
-        d = a - 2 * b + c
-        return 0.0 if d >= 0 else float(np.clip(0.5 * (a - c) / d, -0.5, 0.5))
-
-    dy = refine(r[(iy - 1) % h, ix], r[iy, ix], r[(iy + 1) % h, ix])
-    dx = refine(r[iy, (ix - 1) % w], r[iy, ix], r[iy, (ix + 1) % w])
-    return float(iy + dy - h // 2), float(ix + dx - w // 2), peak, int(iy), int(ix)
+    return _peak(np.ascontiguousarray(r, np.float64))
 
 
 def psr(r: np.ndarray, iy: int, ix: int, exclude: int = 2) -> float:
     """Peak-to-sidelobe ratio: (peak - mean) / std of the response outside the ``2 * exclude + 1``
     cells around it."""
-    h, w = r.shape
-    mask = np.ones(r.shape, bool)
-    ys = np.arange(iy - exclude, iy + exclude + 1) % h
-    xs = np.arange(ix - exclude, ix + exclude + 1) % w
-    mask[np.ix_(ys, xs)] = False
-    side = r[mask]
-    sd = float(side.std())
-    return float((r[iy, ix] - side.mean()) / sd) if sd > 1e-12 else 0.0
+    return float(_psr(np.ascontiguousarray(r, np.float64), iy, ix, exclude))
+
+
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _correlate(
+    Z: np.ndarray, num: np.ndarray, inv: np.ndarray, split: int
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover (compiled)
+    """``sum_l conj(A_l) Z_l / (B + lambda)`` over the channels before ``split`` and over those
+    after it (the visible and the infrared parts of the response's spectrum)."""
+    h, wf, C = Z.shape
+    a = np.empty((h, wf), np.complex128)
+    b = np.empty((h, wf), np.complex128)
+    for y in range(h):
+        for x in range(wf):
+            sa = 0j
+            sb = 0j
+            for c in range(split):
+                sa += np.conj(num[y, x, c]) * Z[y, x, c]
+            for c in range(split, C):
+                sb += np.conj(num[y, x, c]) * Z[y, x, c]
+            a[y, x] = sa * inv[y, x]
+            b[y, x] = sb * inv[y, x]
+    return a, b
+
+
+@cache
+def _visible_channels(cfg: AppearanceConfig) -> int:
+    return len(channel_names(cfg, True, False))
 
 
 def detect(
@@ -662,61 +825,65 @@ def detect(
     """Find the target around ``center`` (frame px) with the model's filters.
 
     ``size`` is the target size to search with (default the model's); the window keeps the
-    model's template shape, so the filter applies at any size.
+    model's template shape, so the filter applies at any size. ``with_scale`` False leaves the
+    size as it is (:func:`rescale` adds the scale filter's estimate later).
     """
     _check_channels(vis is not None, ir is not None, model.channels)
     sz = size or model.size
     win = Window(search_window(center, sz, cfg).box, model.template)
     Z, _ = _translation_spectra(vis, ir, win, cfg, model.gains)
     # the label peaks on the centre cell: the response peaks there plus the target's displacement
-    prod = np.conj(model.num) * Z
     inv = 1.0 / (model.den + cfg.lambda_reg)
     shape = (Z.shape[0], model.template[0] // cfg.cell_px)
     both = all(model.channels)
+    a, b = _correlate(Z, model.num, inv, _visible_channels(cfg) if both else Z.shape[2])
+    resp = resp_v = fft.irfft2(a, s=shape, axes=(0, 1))
     if both:  # the two channels' responses apart: how each supports the joint peak
-        groups = channel_groups(cfg, True, True)
-        resp_v = np.fft.irfft2(np.sum(prod[..., groups < 2], axis=2) * inv, s=shape, axes=(0, 1))
-        resp_i = np.fft.irfft2(np.sum(prod[..., groups >= 2], axis=2) * inv, s=shape, axes=(0, 1))
+        resp_i = fft.irfft2(b, s=shape, axes=(0, 1))
         resp = resp_v + resp_i
-    else:
-        resp = np.fft.irfft2(np.sum(prod, axis=2) * inv, s=shape, axes=(0, 1))
-    dy, dx, peak, iy, ix = _peak_offset(resp)
+    dy, dx, peak, iy, ix = _peak(resp)
     fx, fy = win.frame_px
     cx = center[0] + dx * fx * cfg.cell_px
     cy = center[1] + dy * fy * cfg.cell_px
-    q = psr(resp, iy, ix)
+    q = float(_psr(resp, iy, ix, 2))
     support = (
-        (psr(resp_v, iy, ix), psr(resp_i, iy, ix))
+        (float(_psr(resp_v, iy, ix, 2)), float(_psr(resp_i, iy, ix, 2)))
         if both
         else ((q, float("nan")) if model.channels[0] else (float("nan"), q))
     )
-    factor = 1.0
-    if with_scale and cfg.scale_filter:
-        S = _scale_samples(vis, ir, (cx, cy), sz, cfg, model.scale_template)
-        rs = np.fft.irfft(
-            np.sum(np.conj(model.s_num) * np.fft.rfft(S, axis=1), axis=0)
-            / (model.s_den + cfg.lambda_reg),
-            n=cfg.scale_count,
-        )
-        rs = np.fft.fftshift(rs)
-        k = int(np.argmax(rs))
-        f = _scale_factors(cfg.scale_count, cfg.scale_step)
-        off = 0.0
-        if 0 < k < cfg.scale_count - 1:
-            a, b, c = rs[k - 1], rs[k], rs[k + 1]
-            d = a - 2 * b + c
-            off = float(np.clip(0.5 * (a - c) / d, -0.5, 0.5)) if d < 0 else 0.0
-        factor = float(f[k] * cfg.scale_step**off)
-        factor = float(np.clip(factor, 1 / cfg.max_scale_change, cfg.max_scale_change))
-    return Detection(
-        (cx, cy),
-        peak,
-        q,
-        (sz[0] * factor, sz[1] * factor),
-        factor,
-        support,
-        resp if keep_response else None,
+    d = Detection((cx, cy), peak, q, sz, 1.0, support, resp if keep_response else None)
+    return rescale(model, d, vis, ir, cfg) if with_scale else d
+
+
+def rescale(
+    model: AppearanceModel,
+    d: Detection,
+    vis: np.ndarray | None,
+    ir: np.ndarray | None,
+    cfg: AppearanceConfig,
+) -> Detection:
+    """``d`` with the scale filter's size at its centre (``d.size`` the size searched from);
+    ``d`` itself when the scale filter is off."""
+    if not cfg.scale_filter:
+        return d
+    sz = d.size
+    S = _scale_samples(vis, ir, d.center, sz, cfg, model.scale_template)
+    rs = fft.irfft(
+        np.sum(np.conj(model.s_num) * fft.rfft(S, axis=1), axis=0)
+        / (model.s_den + cfg.lambda_reg),
+        n=cfg.scale_count,
     )
+    rs = np.fft.fftshift(rs)
+    k = int(np.argmax(rs))
+    f = _scale_factors(cfg.scale_count, cfg.scale_step)
+    off = 0.0
+    if 0 < k < cfg.scale_count - 1:
+        a, b, c = rs[k - 1], rs[k], rs[k + 1]
+        dd = a - 2 * b + c
+        off = float(np.clip(0.5 * (a - c) / dd, -0.5, 0.5)) if dd < 0 else 0.0
+    factor = float(f[k] * cfg.scale_step**off)
+    factor = float(np.clip(factor, 1 / cfg.max_scale_change, cfg.max_scale_change))
+    return replace(d, size=(sz[0] * factor, sz[1] * factor), scale_factor=factor)
 
 
 def update(
@@ -758,6 +925,21 @@ def update(
 def warm_up() -> None:
     """Compile or load the feature kernels once per process."""
     _hog_cells(np.zeros((8, 8), np.float32), 4, 9, np.float32(0.2))
+    features(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8), np.uint8), AppearanceConfig())
+    features(np.zeros((8, 8, 3), np.uint8), None, AppearanceConfig())
+    features(None, np.zeros((8, 8), np.uint8), AppearanceConfig())
+    r = np.zeros((5, 5))
+    _peak(r)
+    _psr(r, 2, 2, 1)
+    _weigh(
+        np.zeros((2, 2, 2), np.float32),
+        np.ones(2, np.float32),
+        np.zeros(2, bool),
+        1.0,
+        np.ones((2, 2, 1), np.float32),
+    )
+    z = np.zeros((2, 2, 2), np.complex64)
+    _correlate(z, z.astype(np.complex128), np.ones((2, 2)), 1)
     _scale_hog(
         np.zeros((8, 8), np.float32),
         0.0,

@@ -68,6 +68,11 @@ class AppearanceCue:
         vis, ir = filter_images(frames, mode)
         return app.detect(model, vis, ir, center, self.cfg, size=size, with_scale=with_scale)
 
+    def rescale(self, model: app.AppearanceModel, d: app.Detection, frames: FramePair, mode: str):
+        """``d`` with the scale filter's size at its centre."""
+        vis, ir = filter_images(frames, mode)
+        return app.rescale(model, d, vis, ir, self.cfg)
+
     def cue(self, d: app.Detection, frames: FramePair, redetected: bool) -> FilterCue:
         """The detection ``d`` as the cue the decider reads, its centre kept in the frame."""
         H, W = frames.shape

@@ -87,13 +87,17 @@ def _filter(
     if a is None or t.appearance is None:
         return None
     clock = time.perf_counter()
-    size, with_scale = t.app_size, a.with_scale(frames.index)
-    best = a.detect(t.appearance, frames, mode, cs.y0, size, with_scale)
+    size = t.app_size
+    # the places are compared by their translation peaks; the size is estimated at the chosen
+    # one only
+    best = a.detect(t.appearance, frames, mode, cs.y0, size, with_scale=False)
     if dual.decider.colour_moved(cs.informative, cs.rho1, cs.y1, cs.y0, size, best.psr):
-        d = a.detect(t.appearance, frames, mode, cs.y1, size, with_scale)
+        d = a.detect(t.appearance, frames, mode, cs.y1, size, with_scale=False)
         if d.psr > best.psr:
             best = d
     best, redetected = _redetect(dual, frames, cs, mode, best, background)
+    if not redetected and a.with_scale(frames.index):
+        best = a.rescale(t.appearance, best, frames, mode)
     add_time(timing, "appearance", clock)
     return a.cue(best, frames, redetected)
 
