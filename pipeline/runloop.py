@@ -173,7 +173,8 @@ class _Reader:
             self._t.start()
 
     def _frames(self) -> Iterator[FramePair]:
-        it = self.seq.frames(1, self.stop_frame)
+        # threaded: two decoders, which overlap each other and the tracker
+        it = self.seq.frames(1, self.stop_frame, workers=2 if self.threaded else 1)
         while True:
             t0 = time.perf_counter()
             try:

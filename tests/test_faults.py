@@ -276,7 +276,7 @@ def test_batch_timeout_stops_the_child_with_sigterm_first(tmp_path, long_scene):
     arch = tmp_path / "arch"
     shutil.copytree(long_scene, arch / "b")
     out = tmp_path / "out"
-    r = _cli("batch", arch, "--out", out, "--trackers", "mil", "--timeout", "3")
+    r = _cli("batch", arch, "--out", out, "--trackers", "mil", "--timeout", "8")
     assert r.returncode == 1
     report = json.loads((out / "report.json").read_text())
     assert "timed out" in report["sequences"]["b"]["error"]

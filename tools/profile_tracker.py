@@ -4,8 +4,9 @@ The tracker alone runs over frames decoded beforehand (no decoding, no sinks), o
 up and once under ``cProfile``; each function's own time is charged to the part of the
 tracker its module belongs to (:data:`PARTS`), and counted as *compiled* when it is a C
 function (NumPy, SciPy, OpenCV) or a Numba kernel (each kernel is wrapped in a named Python
-function for the run, so its time is its own). The rest is the Python layer. Profiling adds
-its own cost to every Python call, so the Python share here is an upper bound; the total is
+function for the run, so its time is its own). The rest is the Python layer. One core (thread
+pools of one, as ``dualtrack bench``). Profiling adds its own cost to every Python call, so the
+Python share here is an upper bound; the total is
 also printed as the unprofiled CPU time of the same loop.
 
 Usage::
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import os
 import pstats
 import sys
 import tempfile
@@ -28,6 +30,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ[_var] = "1"  # one core, as dualtrack bench: CPU time is then the work's own
 
 NAMED = (
     "shadows",
@@ -186,7 +190,11 @@ def main() -> None:
     ap.add_argument("--seq", type=Path, action="append", help="a sequence folder instead")
     ap.add_argument("--frames", type=int, default=None, help="only the first N frames")
     a = ap.parse_args()
+    import cv2
+
     from pipeline.synthetic import synthesize
+
+    cv2.setNumThreads(1)
 
     results: dict[str, dict[str, object]] = {}
     with tempfile.TemporaryDirectory(prefix="dualtrack-profile-") as tmp:

