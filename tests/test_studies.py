@@ -67,7 +67,9 @@ def test_output_fingerprint_saves_and_checks(tmp_path):
     args = ("--scenes-dir", str(tmp_path / "scenes"), "--only", "fast-s0")
     run_tool("output_fingerprint.py", *args, "--save", str(fp))
     saved = json.loads(fp.read_text())
-    assert list(saved) == ["fast-s0"] and len(saved["fast-s0"]) == 64
+    entry = saved["fast-s0"]
+    assert list(saved) == ["fast-s0"] and len(entry["sha"]) == 64
+    assert entry["p20"] == 1.0 and 0.5 < entry["auc"] <= 1.0  # the fast scene is tracked
     run_tool("output_fingerprint.py", *args, "--check", str(fp))  # the same code: byte-identical
     fp.write_text(json.dumps({"fast-s0": "0" * 64}))
     r = subprocess.run(

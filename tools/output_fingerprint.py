@@ -90,7 +90,7 @@ SCORES = ("p20", "auc", "idf1")
 
 
 def _scores(summary: dict) -> dict[str, float]:
-    """The run's scores of :data:`SCORES` (NaN where it has none)."""
+    """The run's scores of :data:`SCORES` (NaN where it has none; saved as ``null``)."""
     ev = summary.get("metrics") or {}
     out = {}
     for k in SCORES:
@@ -158,17 +158,22 @@ def main() -> int:
         return 2
     got = fingerprints(a.scenes_dir, only)
     if a.save is not None:
-        a.save.write_text(json.dumps(got, indent=1) + "\n")
+        plain = {k: {s: (None if v != v else v) for s, v in e.items()} for k, e in got.items()}
+        a.save.write_text(json.dumps(plain, indent=1, allow_nan=False) + "\n")
         print(f"saved {len(got)} fingerprints to {a.save}")
     if a.check is not None:
         want = {
-            k: v if isinstance(v, dict) else {"sha": v}
+            k: {s: float("nan") if x is None else x for s, x in v.items()}
+            if isinstance(v, dict)
+            else {"sha": v}
             for k, v in json.loads(a.check.read_text()).items()
         }
         if only is not None:
             want = {k: v for k, v in want.items() if k in only}
         diff = sorted(
-            k for k in set(want) | set(got) if want.get(k, {}).get("sha") != got.get(k, {})["sha"]
+            k
+            for k in set(want) | set(got)
+            if want.get(k, {}).get("sha") != got.get(k, {}).get("sha")
         )
         if diff:
             print("output differs: " + ", ".join(diff), file=sys.stderr)
@@ -180,7 +185,7 @@ def main() -> int:
 
 def _moves(want: dict[str, dict], got: dict[str, dict], diff: list[str]) -> None:
     """How the differing runs' scores moved, and the mean change over every run."""
-    if not all("p20" in want.get(k, {}) for k in diff):
+    if not all("p20" in want.get(k, {}) and k in got for k in diff):
         return  # a fingerprint file of hashes only
     print(f"{'run':32s} " + " ".join(f"{'d' + k:>8s}" for k in SCORES), file=sys.stderr)
     for k in diff:
