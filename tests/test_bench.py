@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from pipeline.bench import format_table, run_bench
 
 
@@ -18,6 +20,8 @@ def test_bench_table_and_json(scene, tmp_path):
         )
         assert r["fps_tracking_cpu"] > 0
         assert 0 <= r["p20"] <= 1 and 0 <= r["auc"] <= 1 and r["end_to_end_vs_decode"] > 0
+        ratio = r["fps_end_to_end"] / r["fps_decode_opencv"]
+        assert r["end_to_end_vs_opencv_decode"] == pytest.approx(ratio, rel=1e-2, abs=1e-3)
     assert "camshift" in rows[0]["speed_vs_peers"] and "camshift" in rows[0]["speed_vs_peers_cpu"]
     cpu = [r["fps_tracking_cpu"] for r in rows]
     assert rows[0]["speed_vs_peers_cpu"]["camshift"] == round(cpu[0] / cpu[1], 2)
