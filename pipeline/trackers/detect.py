@@ -354,27 +354,7 @@ class DetectAndAssociate:
             and nt.hits < a.confirm_hits
         ):
             return
-        box = nt.box
-        conf = {
-            TargetStatus.TRACKING: 1.0,
-            TargetStatus.OCCLUDED_SEVERE: 0.3,
-            TargetStatus.TENTATIVE: 0.2,
-        }.get(nt.status, 0.0)
-        ledger.results.append(
-            TargetResult(
-                nt.id,
-                box,
-                nt.status,
-                source,
-                {},
-                float(rho) if np.isfinite(rho) else float("nan"),
-                "none",
-                conf,
-                (),
-                diag,
-                {"prediction": prior.box},
-            )
-        )
+        ledger.results.append(_result(nt, prior, source, rho, diag))
         if nt.status != TargetStatus.LOST:
             ledger.tracks.append(nt)
         elif a.relink_frames > 0:
@@ -615,6 +595,31 @@ def make_engine(cfg: DetectConfig) -> CoreEngine[DetectState]:
     """The detection-driven tracker as an engine; attached to a sequence, its detector uses the
     sequence's background (``detection.background_init = "sequence"``)."""
     return CoreEngine("detect", DetectAndAssociate(cfg))
+
+
+def _result(
+    nt: DetTrack, prior: kalman.GaussianState, source: str, rho: float, diag: dict[str, float]
+) -> TargetResult:
+    """Track ``nt``'s row of the frame: its box and status, the measurement's ``source`` and
+    colour match ``rho``, a confidence by status, the prediction as its candidate box."""
+    conf = {
+        TargetStatus.TRACKING: 1.0,
+        TargetStatus.OCCLUDED_SEVERE: 0.3,
+        TargetStatus.TENTATIVE: 0.2,
+    }.get(nt.status, 0.0)
+    return TargetResult(
+        nt.id,
+        nt.box,
+        nt.status,
+        source,
+        {},
+        float(rho) if np.isfinite(rho) else float("nan"),
+        "none",
+        conf,
+        (),
+        diag,
+        {"prediction": prior.box},
+    )
 
 
 def detect_init(
