@@ -62,8 +62,12 @@ def decode_rate(seq_path: Path, repeat: int = 1, **open_kw: object) -> tuple[flo
 def opencv_decode_rate(seq_path: Path, repeat: int = 1, **open_kw: object) -> float | None:
     """Frame pairs per second at which OpenCV alone reads and decodes the sequence's image
     files on one thread (``cv2.imread``; an infrared channel straight to grey, as the reader
-    does): the reference for the end-to-end rate on large frames. None for a video, which
-    OpenCV decodes in both cases."""
+    does): the reference for the end-to-end rate on large frames, the fastest of ``repeat``
+    passes after a warm one. None for a video, which OpenCV decodes in both cases.
+
+    On large frames the rate depends on the state of the process's memory allocator (page
+    faults on fresh buffers): it is measured as ``dualtrack bench`` finds the process, after
+    the reader's own passes, and is best compared within one run."""
     from pipeline.io.frames import ImageListSource
 
     seq = open_sequence(seq_path, **open_kw)  # type: ignore[arg-type]
@@ -76,7 +80,7 @@ def opencv_decode_rate(seq_path: Path, repeat: int = 1, **open_kw: object) -> fl
         for p in s.paths
     ]
     best = float("inf")
-    for _ in range(repeat):
+    for _ in range(repeat + 1):  # the first pass warms the file cache, as decode_rate's
         t0 = time.perf_counter()
         for path, flag in files:
             cv2.imread(path, flag)
