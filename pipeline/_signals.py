@@ -9,6 +9,8 @@ import signal
 import threading
 
 _taken = 0  # signals taken by the installed Interrupts
+_held = 0  # depth of the ``held`` blocks being run
+_pending = False  # the first signal arrived inside a ``held`` block
 
 
 def taken() -> int:
@@ -34,6 +36,10 @@ class Interrupts:
         self.count += 1
         _taken = self.count
         if self.count == 1:
+            if _held:
+                global _pending
+                _pending = True
+                return
             raise KeyboardInterrupt
 
     def install(self) -> None:
@@ -52,3 +58,22 @@ class Interrupts:
         for s, h in self.previous.items():
             signal.signal(s, h)  # type: ignore[arg-type]
         self.previous.clear()
+
+
+class held:
+    """A block that the command's first SIGINT/SIGTERM does not cut: taken inside it, the
+    ``KeyboardInterrupt`` is raised as the block ends (unless the block raises already). For
+    set-ups that must happen whole or not at all, such as redirecting a file descriptor and
+    starting the thread that reads it. Blocks nest."""
+
+    def __enter__(self) -> None:
+        global _held
+        _held += 1
+
+    def __exit__(self, kind: object, value: object, tb: object) -> None:
+        global _held, _pending
+        _held -= 1
+        if _held == 0 and _pending:
+            _pending = False
+            if kind is None:
+                raise KeyboardInterrupt

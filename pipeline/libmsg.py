@@ -23,6 +23,8 @@ import re
 import sys
 import threading
 
+from pipeline._signals import held
+
 __all__ = ["LIBRARY_LINE", "LibraryMessages", "library_says"]
 
 LIBRARY_LINE = re.compile(
@@ -65,7 +67,16 @@ class LibraryMessages:
         self._stderr: object = None
 
     def start(self) -> None:
-        """Redirect file descriptor 2 (no-op where it cannot be duplicated)."""
+        """Redirect file descriptor 2 (no-op where it cannot be duplicated).
+
+        The command's SIGINT and SIGTERM are held back while it runs and raised when it returns
+        (:class:`pipeline._signals.held`), so an interruption finds the redirection whole, its
+        reader thread started: never a descriptor 2 that nothing reads, or a thread that cannot
+        be joined."""
+        with held():
+            self._start()
+
+    def _start(self) -> None:
         try:
             sys.stderr.flush()
             self._real = os.dup(2)
