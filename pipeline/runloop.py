@@ -81,7 +81,7 @@ class LoopStats:
     frames: int = 0
     tracker_s: float = 0.0
     tracker_cpu_s: float = 0.0  # CPU seconds of the calling thread inside the step
-    decode_s: float = 0.0
+    decode_s: float = 0.0  # the reader's wait for decoded pairs (two decoders: under their work)
     sinks_s: float = 0.0
     wall_s: float = 0.0
     stage_s: dict[str, float] = field(default_factory=dict)

@@ -381,6 +381,7 @@ def test_bench_reports_failed_sequences_and_prints_the_rest(tmp_path):
     assert (
         "| good | meanshift |" in r.stdout and "1 failed:" in r.stdout and "00003.jpg" in r.stdout
     )
+    _only_line(r.stderr, "1 of 2 runs failed", "bad", "00003.jpg")  # and says so on stderr
 
 
 @pytest.fixture(scope="module")
@@ -562,15 +563,6 @@ def test_batch_with_a_failed_sequence_says_so_on_stderr(tmp_path):
     r = _cli("batch", root, "--out", tmp_path / "out", "--trackers", "meanshift", "--no-plots")
     assert r.returncode == 1
     _only_line(r.stderr, "1 of 2 sequences failed", "bad", "00002.jpg", "report.md")
-
-
-def test_bench_with_a_failed_sequence_says_so_on_stderr(tmp_path):
-    good = _tiny(tmp_path / "good", 4)
-    bad = _tiny(tmp_path / "bad", 4)
-    (bad / "visible" / "00002.jpg").write_bytes(b"")
-    r = _cli("bench", bad, good, "--trackers", "meanshift")
-    assert r.returncode == 1
-    _only_line(r.stderr, "1 of 2 runs failed", "bad", "00002.jpg")
 
 
 def test_a_run_folder_removed_mid_run_is_said_so(tmp_path, long_scene):

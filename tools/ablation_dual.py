@@ -47,16 +47,6 @@ VARIANTS: dict[str, list[str]] = {
     "-closing": ["dual.contour.closing_fraction=0"],
     "paper": [],  # data/dual-paper.toml
 }
-NAMED = (
-    "shadows",
-    "dusk",
-    "approach",
-    "lookalike",
-    "hot-distractor",
-    "crossover",
-    "occluder",
-    "fast",
-)
 
 
 def _p10(xs: list[float]) -> float:
@@ -69,7 +59,7 @@ def main() -> None:
     import cv2
 
     from pipeline.bench import random_scene_set, run_bench
-    from pipeline.synthetic import synthesize
+    from pipeline.synthetic import ONE_TARGET_SCENES, synthesize
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--split", choices=("dev", "test"), default="dev")
@@ -90,7 +80,7 @@ def main() -> None:
         }
         if a.named:
             named = []
-            for sc in NAMED:
+            for sc in ONE_TARGET_SCENES:
                 d = root / "named" / sc
                 if not d.exists():
                     synthesize(sc, d, seed=0)

@@ -44,16 +44,6 @@ SINGLE_TRACKERS = ("dual", "meanshift", "kalman-camshift", "camshift", "mil", "c
 MULTI_TRACKERS = ("dual", "csrt", "detect")
 REAL_TRACKERS = ("dual", "meanshift", "mil", "csrt", "kcf")
 SPEED_TRACKERS = ("dual", "csrt", "kcf")
-NAMED = (
-    "shadows",
-    "dusk",
-    "approach",
-    "lookalike",
-    "hot-distractor",
-    "crossover",
-    "occluder",
-    "fast",
-)
 
 
 def spread(lo: int, hi: int, n: int) -> list[int]:
@@ -305,7 +295,7 @@ def main() -> int:
     import cv2
 
     from pipeline.bench import run_bench, run_random_bench, run_scaling
-    from pipeline.synthetic import synthesize
+    from pipeline.synthetic import ONE_TARGET_SCENES, synthesize
 
     cv2.setNumThreads(1)
     t0 = time.time()
@@ -336,7 +326,7 @@ def main() -> int:
         real_rows = run_bench(seqs, list(REAL_TRACKERS), out=out / "real")
         raw["real"] = real_rows
     named = []
-    for s in NAMED:
+    for s in ONE_TARGET_SCENES:
         d = out / "named" / s
         if not (d / "scene.json").is_file():
             synthesize(s, d, seed=0, force=True)

@@ -33,16 +33,6 @@ sys.path.insert(0, str(ROOT))
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ[_var] = "1"  # one core, as dualtrack bench: CPU time is then the work's own
 
-NAMED = (
-    "shadows",
-    "dusk",
-    "approach",
-    "lookalike",
-    "hot-distractor",
-    "crossover",
-    "occluder",
-    "fast",
-)
 
 PARTS = (
     ("filter", ("stages/appearance", "trackers/dual/appearance", "scipy/fft", "numpy/fft")),
@@ -186,13 +176,13 @@ def table(results: dict[str, dict[str, object]]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tracker", default="dual")
-    ap.add_argument("--scenes", nargs="*", default=list(NAMED), help="named synthetic scenes")
+    ap.add_argument("--scenes", nargs="*", help="named synthetic scenes (default: the eight)")
     ap.add_argument("--seq", type=Path, action="append", help="a sequence folder instead")
     ap.add_argument("--frames", type=int, default=None, help="only the first N frames")
     a = ap.parse_args()
     import cv2
 
-    from pipeline.synthetic import synthesize
+    from pipeline.synthetic import ONE_TARGET_SCENES, synthesize
 
     cv2.setNumThreads(1)
 
@@ -200,7 +190,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="dualtrack-profile-") as tmp:
         seqs = list(a.seq or [])
         if not a.seq:
-            seqs = [synthesize(s, Path(tmp) / s, seed=0, progress=False) for s in a.scenes]
+            names = a.scenes or ONE_TARGET_SCENES
+            seqs = [synthesize(s, Path(tmp) / s, seed=0, progress=False) for s in names]
         for seq in seqs:
             results[Path(seq).name] = r = profile(Path(seq), a.tracker, a.frames)
             print(f"{Path(seq).name}: {r['cpu_ms']:.3f} ms a frame (CPU)", file=sys.stderr)

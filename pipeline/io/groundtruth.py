@@ -53,13 +53,25 @@ def _is_float(s: str) -> bool:
     return True
 
 
-def _read_lines(path: Path) -> list[str]:
+def read_text(path: Path, not_text: str, name: str | None = None) -> str:
+    """The text of ``path`` (UTF-8; a byte-order mark dropped).
+
+    Raises
+    ------
+    InputError
+        ``not_text`` for bytes that are not UTF-8 text; ``cannot read <name>: <reason>`` (name
+        defaults to the path) when the system cannot read the file.
+    """
     try:
-        text = path.read_text(encoding="utf-8-sig", errors="strict")
+        return path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
-        raise InputError(f"{path}: malformed ground truth, not a text file") from None
+        raise InputError(not_text) from None
     except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror}") from None
+        raise InputError(f"cannot read {name or path}: {exc.strerror}") from None
+
+
+def _read_lines(path: Path) -> list[str]:
+    text = read_text(path, f"{path}: malformed ground truth, not a text file")
     lines = text.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()

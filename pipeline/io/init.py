@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import InputError
-from pipeline.io.groundtruth import MOT_BASE, parse_box_file, parse_mot_rows
+from pipeline.io.groundtruth import MOT_BASE, parse_box_file, parse_mot_rows, read_text
 from pipeline.io.sequence import Sequence
 from pipeline.types import BBox, InitTarget
 
@@ -44,14 +44,11 @@ def read_init_file(path: Path) -> list[InitTarget]:
             if not path.exists()
             else f"--init-file {path} is not a file"
         )
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(
-            f"--init-file {path}: not a text file (one x,y,w,h per line, or MOT rows)"
-        ) from None
-    except OSError as exc:
-        raise InputError(f"cannot read --init-file {path}: {exc.strerror}") from None
+    text = read_text(
+        path,
+        f"--init-file {path}: not a text file (one x,y,w,h per line, or MOT rows)",
+        f"--init-file {path}",
+    )
     first = next((ln for ln in text.splitlines() if ln.strip()), "")
     n_cols = len([p for p in first.replace(",", " ").split() if p])
     if n_cols >= 6:

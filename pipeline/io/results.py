@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import InputError
-from pipeline.io.groundtruth import MOT_BASE, parse_box_file, parse_mot_rows
+from pipeline.io.groundtruth import MOT_BASE, parse_box_file, parse_mot_rows, read_text
 
 
 @dataclass(frozen=True)
@@ -43,14 +43,7 @@ def read_tracks(path: str | Path, n_frames: int, base: float | None = None) -> T
         raise InputError(
             f"results file not found: {p}" if not p.exists() else f"results file {p} is a folder"
         )
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(
-            f"{p}: not a text results file (MOT rows or one x,y,w,h per line)"
-        ) from None
-    except OSError as exc:
-        raise InputError(f"cannot read {p}: {exc.strerror}") from None
+    text = read_text(p, f"{p}: not a text results file (MOT rows or one x,y,w,h per line)")
     first = next((ln for ln in text.splitlines() if ln.strip()), None)
     if first is None:
         return TrackTable({}, {})

@@ -42,7 +42,8 @@ import numpy as np
 from pipeline.io.results import read_tracks
 from pipeline.io.sequence import Truth
 
-EXPORT_FORMATS = ("rgbt234", "gtot", "lasher", "vtuav", "mot")
+BOX_FORMATS = ("rgbt234", "gtot", "lasher", "vtuav")  # one target, one box a frame
+EXPORT_FORMATS = (*BOX_FORMATS, "mot")
 
 
 def _num(v: float) -> str:
@@ -52,8 +53,8 @@ def _num(v: float) -> str:
 def export_lines(boxes: np.ndarray, fmt: str) -> list[str]:
     """The lines of one sequence's export file in format ``fmt`` (``boxes``: (N, 4), NaN rows
     without output)."""
-    if fmt not in EXPORT_FORMATS[:4]:
-        raise ValueError(f"export format must be one of {EXPORT_FORMATS[:4]}; got {fmt!r}")
+    if fmt not in BOX_FORMATS:
+        raise ValueError(f"export format must be one of {BOX_FORMATS}; got {fmt!r}")
     out = []
     for b in boxes:
         x, y, w, h = (float(v) for v in b)

@@ -325,9 +325,8 @@ def features(vis: np.ndarray | None, ir: np.ndarray | None, cfg: AppearanceConfi
     ``vis`` is ``(H, W, 3)`` uint8 BGR or None, ``ir`` ``(H, W)`` uint8 or None; the
     channels are those of :func:`channel_names`, in that order.
     """
-    if vis is None and (ir is None or not cfg.infrared):
-        raise ValueError("features need at least one channel")
-    if vis is not None and not (cfg.visible_gradients or cfg.colour) and ir is None:
+    has_vis = vis is not None and (cfg.visible_gradients or cfg.colour)
+    if not has_vis and (ir is None or not cfg.infrared):
         raise ValueError("features need at least one channel")
     lab = cv2.cvtColor(vis, cv2.COLOR_BGR2LAB) if vis is not None else _NO_LAB
     return _window_features(
@@ -876,11 +875,7 @@ def rescale(
     rs = np.fft.fftshift(rs)
     k = int(np.argmax(rs))
     f = _scale_factors(cfg.scale_count, cfg.scale_step)
-    off = 0.0
-    if 0 < k < cfg.scale_count - 1:
-        a, b, c = rs[k - 1], rs[k], rs[k + 1]
-        dd = a - 2 * b + c
-        off = float(np.clip(0.5 * (a - c) / dd, -0.5, 0.5)) if dd < 0 else 0.0
+    off = float(_refine(rs[k - 1], rs[k], rs[k + 1])) if 0 < k < cfg.scale_count - 1 else 0.0
     factor = float(f[k] * cfg.scale_step**off)
     factor = float(np.clip(factor, 1 / cfg.max_scale_change, cfg.max_scale_change))
     return replace(d, size=(sz[0] * factor, sz[1] * factor), scale_factor=factor)

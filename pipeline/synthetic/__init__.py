@@ -45,6 +45,18 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "pole-fast": ("HO", "FM"),
 }
 
+ONE_TARGET_SCENES: tuple[str, ...] = (
+    "shadows",
+    "dusk",
+    "approach",
+    "lookalike",
+    "hot-distractor",
+    "crossover",
+    "occluder",
+    "fast",
+)
+"""The eight one-target named scenes, one challenge each: the set of the speed tables
+(``dualtrack bench``, ``tools/benchmarks.py``, ``tools/profile_tracker.py``) and the ablations."""
 
 SCENE_CODES = {
     "shadow": "BC",

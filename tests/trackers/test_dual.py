@@ -11,19 +11,9 @@ import pytest
 from pipeline.config import load_config
 from pipeline.errors import ConfigError
 from pipeline.run import RunOptions, run_track, track
+from pipeline.synthetic import ONE_TARGET_SCENES
 from pipeline.trackers.dual import Case, DualConfig, Rule, scale_update
 from tests.rrd_helpers import open_store, rows
-
-SCENES = (
-    "shadows",
-    "dusk",
-    "approach",
-    "lookalike",
-    "hot-distractor",
-    "crossover",
-    "occluder",
-    "fast",
-)
 
 
 def test_scale_update_eq7():
@@ -197,7 +187,7 @@ def test_recent_speed_and_last_seen():
 
 def test_acceptance_on_the_synthetic_scenes(scene, tmp_path):
     p20, auc = {}, {}
-    for name in SCENES:
+    for name in ONE_TARGET_SCENES:
         res = run_track(
             scene(name),
             RunOptions(tracker="dual", out_dir=tmp_path / name, rrd=False, plots=False),
