@@ -925,16 +925,21 @@ def warm_up() -> None:
     features(None, np.zeros((8, 8), np.uint8), AppearanceConfig())
     r = np.zeros((5, 5))
     _peak(r)
+    _refine(0.0, 1.0, 0.0)  # the scale peak's, called from Python
     _psr(r, 2, 2, 1)
+    # the argument types the tracker passes: cached channel masks are read-only, the filter's
+    # denominator is float32
+    clipped = np.zeros(2, bool)
+    clipped.flags.writeable = False
     _weigh(
         np.zeros((2, 2, 2), np.float32),
         np.ones(2, np.float32),
-        np.zeros(2, bool),
+        clipped,
         1.0,
         np.ones((2, 2, 1), np.float32),
     )
     z = np.zeros((2, 2, 2), np.complex64)
-    _correlate(z, z.astype(np.complex128), np.ones((2, 2)), 1)
+    _correlate(z, z.astype(np.complex128), np.ones((2, 2), np.float32), 1)
     _scale_hog(
         np.zeros((8, 8), np.float32),
         0.0,
