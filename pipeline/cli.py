@@ -460,6 +460,8 @@ def _cmd_evaluate(a: argparse.Namespace) -> int:
             "mota",
             "motp",
             "idf1",
+            "idf1_visible",
+            "purity_visible",
             "id_switches",
             "hota",
         )

@@ -88,6 +88,11 @@ def test_fps_vs_targets_table(tmp_path):
     assert rows[1]["ms_per_target"] == round(1000 / (rows[1]["fps_tracking"] * 2), 3)
     # two people in separate lanes: both followed, no identity confusion
     assert rows[1]["p20"] >= 0.95 and rows[1]["purity"] >= 0.95 and rows[1]["id_switches"] == 0
+    # both always visible: the visible-frame figures are the all-frames ones
+    assert (rows[1]["purity_visible"], rows[1]["idf1_visible"]) == (
+        rows[1]["purity"],
+        rows[1]["idf1"],
+    )
     assert "| meanshift | 2 |" in format_scaling(rows)
 
 

@@ -39,6 +39,9 @@ from pipeline.io.sequence import Truth, open_sequence
 from pipeline.types import BBox, FrameResult, FrameTruth, TruthMatch
 
 ID_RULES = ("auto", "truth", "assign")
+MIN_VISIBILITY = 0.25
+"""Visibility from which a truth box counts in the ``*_visible`` scores (fraction of the target
+not hidden, from ``gt.txt``'s visibility column; synthetic scenes write it)."""
 SINGLE_KEYS = ("p5", "p20", "auc", "mean_error_px", "npr", "mpr", "msr")
 
 
@@ -204,9 +207,46 @@ class Assessment:
         out["idp"], out["idr"] = self.id_info["idp"], self.id_info["idr"]
         out["purity"] = mot.purity_matrix(gt, boxes, fm)
         out.update(mot.hota(gt, boxes, n, data=self.data))
+        out.update(self._visible_scores(mot_rule))
         if n < self.n_frames:
             out["mot_frames"] = n  # the annotated frames the scores above count
         return out
+
+    def _visible_scores(self, mot_rule: str) -> dict[str, object]:
+        """``idf1_visible`` and ``purity_visible``: IDF1 and overall purity on the frames where
+        each target is at least :data:`MIN_VISIBILITY` visible (the all-frames figures when every
+        truth box is); {} without a visibility column.
+
+        A less visible truth box is an ignore region, as MOTChallenge scores its visibility
+        filter: the box leaves the truth, and a track box that overlaps it (IoU >= 0.5, one
+        box per box) is neither a true nor a false positive. A tracker that keeps a hidden
+        target's identity is then scored on the frames where it can be seen."""
+        keep = self.truth.annotated(self.n_frames)
+        vis = {g: v[: self.n_frames][keep] for g, v in self.truth.visibility.items()}
+        low = {
+            g: (vis[g] < MIN_VISIBILITY) & ~np.isnan(b).any(axis=1)
+            for g, b in self.mot_gt.items()
+            if g in vis
+        }
+        if not low:
+            return {}
+        gt, ignored = {}, {}
+        for g, b in self.mot_gt.items():
+            m = low.get(g, np.zeros(len(b), bool))
+            gt[g] = np.where(m[:, None], np.nan, b)
+            if m.any():
+                ignored[g] = np.where(m[:, None], b, np.nan)
+        tracks = mot.drop_distractor_matches(gt, self.mot_tracks, ignored)
+        n = self.mot_frames
+        data = mot.sequence_data(gt, tracks, n)
+        fm = mot.match_frames(gt, tracks, n, rule=mot_rule, data=data)
+        ids = mot.idf1(gt, tracks, data=data)["idf1"] if tracks else 0.0
+        kept = sum(int((~np.isnan(b).any(axis=1)).sum()) for b in gt.values())
+        return {
+            "idf1_visible": ids,
+            "purity_visible": mot.purity_matrix(gt, tracks, fm)["overall"],
+            "visible_target_frames": kept,
+        }
 
     def curves(self) -> dict[int, dict[str, np.ndarray]]:
         """Per truth id: ``errors`` (N,), ``precision`` (51,), ``success`` (21,), for the plots."""

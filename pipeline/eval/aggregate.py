@@ -28,7 +28,7 @@ SCORE_KEYS = {
     "gtot": ("mpr", "msr"),
     "lasher": ("pr", "npr", "sr"),
 }
-MULTI_KEYS = ("mota", "idf1", "hota", "id_switches")
+MULTI_KEYS = ("mota", "idf1", "hota", "id_switches", "idf1_visible", "purity_visible")
 
 
 def sequence_curves(

@@ -49,6 +49,8 @@ LABEL = {
     "idf1": "IDF1",
     "hota": "HOTA",
     "purity": "purity",
+    "purity_visible": "purity (visible)",
+    "idf1_visible": "IDF1 (visible)",
     "id_switches": "ID sw.",
 }
 
@@ -243,11 +245,8 @@ def _markdown(
 ) -> str:
     overall = report["overall"]
     keys = list(HEADLINE[protocol])
-    extra = [
-        k
-        for k in ("purity", "id_switches", "mota", "idf1", "hota")
-        if any(k in o for o in overall.values())
-    ]
+    many = ("purity", "purity_visible", "id_switches", "mota", "idf1", "idf1_visible", "hota")
+    extra = [k for k in many if any(k in o for o in overall.values())]
     seqs = report["sequences"]
     n_seq = len({s["sequence"] for s in seqs.values()})
     pooling = "frames pooled over all sequences" if protocol == "gtot" else "mean over sequences"
