@@ -127,7 +127,7 @@ def run_detect(
     per_frame: list[int] = []
     det_s = [0.0]
 
-    from pipeline.io.background import sequence_background
+    from pipeline.io.background import camera_warning, sequence_background
 
     source = sequence_background(seq, ch, cfg.detect.detection)
     background = [None]
@@ -178,6 +178,11 @@ def run_detect(
             "fps": round(len(per_frame) / det_s[0], 1) if det_s[0] > 0 else None,
             "background_seconds": round(bg_s[0], 3),
         }
+        if source is not None:
+            extra["camera"] = cam = source.camera()
+            line = camera_warning(cam, "det.txt holds them as found")
+            if line:
+                extra["warnings"] = [*summary.get("warnings", []), line]  # type: ignore[list-item]
         if truth:
             extra.update(
                 {

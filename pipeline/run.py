@@ -19,6 +19,7 @@ import numpy as np
 from pipeline._version import __version__
 from pipeline.config import PipelineConfig, config_to_dict, load_config
 from pipeline.errors import InputError
+from pipeline.io.background import camera_warning
 from pipeline.io.init import resolve_init
 from pipeline.io.sequence import FramePair, Sequence, open_sequence
 from pipeline.trackers import DEFAULT_TRACKER, Engine, make_tracker
@@ -348,14 +349,22 @@ def run_track(
         return sinks
 
     def finish(stats) -> dict[str, object]:
+        extra: dict[str, object] = {}
+        rule = getattr(getattr(engine, "core", None), "on_moving_camera", None)
+        camera = engine.camera() if rule and hasattr(engine, "camera") else None
+        if camera is not None:
+            extra["camera"] = camera
+            line = camera_warning(camera, rule)
+            if line:
+                extra["warnings"] = [*summary.get("warnings", []), line]  # type: ignore[list-item]
         if not has_truth:
-            return {}
+            return extra
         done = stats.frames
         truth = seq.truth.truncated(done)
         table = TrackTable({k: v[:done] for k, v in boxes.items()}, {})
         id_rule = "assign" if detected_ids else "truth"  # detection-made ids are arbitrary
         assessment = Assessment(truth, table, done, id_rule)  # the run's one evaluation
-        extra: dict[str, object] = {"metrics": assessment.metrics(opts.protocol)}
+        extra["metrics"] = assessment.metrics(opts.protocol)
         if opts.plots:
             from pipeline.sinks.plots import write_plots
 

@@ -37,6 +37,8 @@ class SequenceBackground:
     can, :meth:`at` returns None and the detector bootstraps from the frame it is given.
     The block in use is cached: a sequence of N frames costs
     ``ceil(N / background_window_frames) * background_samples`` extra frame reads.
+    A block whose samples the camera saw from elsewhere (:attr:`Background.holds` False: a
+    moving camera) is remembered; :meth:`camera` reports them.
     """
 
     def __init__(self, seq: Sequence, channel: str, cfg: DetectionConfig):
@@ -45,6 +47,31 @@ class SequenceBackground:
         self.cfg = cfg
         self._block: int | None = None
         self._bg: Background | None = None
+        self._moved: dict[int, tuple[int, int]] = {}  # block -> (moved samples, samples)
+        self._last = 0
+
+    def block_frames(self, block: int) -> range:
+        """The 1-based frames whose background block ``block``'s is."""
+        w = self.cfg.background_window_frames
+        return range(block * w + 1, min((block + 1) * w, self.seq.n_frames) + 1)
+
+    def camera(self) -> dict[str, object]:
+        """What the background's samples said of the camera, over the frames asked for so far:
+        ``moving`` (some frame's block does not hold), ``moving_frames`` (how many frames are in
+        such blocks), ``frames`` (asked for), and per such block its first and last frame and how
+        many of its samples were seen from elsewhere."""
+        blocks = [
+            {"frames": [r.start, min(r.stop - 1, self._last)], "moved_samples": m, "samples": n}
+            for b, (m, n) in sorted(self._moved.items())
+            if (r := self.block_frames(b)).start <= self._last
+        ]
+        frames = sum(b["frames"][1] - b["frames"][0] + 1 for b in blocks)  # type: ignore[index]
+        return {
+            "moving": bool(blocks),
+            "moving_frames": frames,
+            "frames": self._last,
+            "blocks": blocks,
+        }
 
     def sample_indices(self, block: int) -> list[int]:
         """The 1-based frames block ``block``'s background is estimated from."""
@@ -57,8 +84,11 @@ class SequenceBackground:
     def at(self, index: int) -> Background | None:
         """The background of frame ``index`` (1-based)."""
         block = (index - 1) // self.cfg.background_window_frames
+        self._last = max(self._last, index)
         if block != self._block:
             self._block, self._bg = block, self._estimate(block)
+            if self._bg is not None and not self._bg.holds:
+                self._moved[block] = (self._bg.moved_samples, self._bg.frames)
         return self._bg
 
     def _estimate(self, block: int) -> Background | None:
@@ -78,6 +108,18 @@ class SequenceBackground:
         if not greys or any(g.shape != greys[0].shape for g in greys):
             return None
         return quantile_background(greys, self.cfg, labs if len(labs) == len(greys) else None)
+
+
+def camera_warning(camera: dict[str, object], consequence: str) -> str | None:
+    """The one line a run says about a moving camera (:meth:`SequenceBackground.camera`), or
+    None for a still one; ``consequence`` says what the run did about it."""
+    if not camera.get("moving"):
+        return None
+    return (
+        f"the camera moves on {camera['moving_frames']} of {camera['frames']} frames: a still "
+        "camera's background does not hold there (its samples were seen from elsewhere), so the "
+        f"detector's regions there are the scene's own texture as much as targets; {consequence}"
+    )
 
 
 def sequence_background(

@@ -76,7 +76,8 @@ class DetectionConfig(Section):
         Largest camera shake registered, px, in [0, 16]: every frame's translation against
         the ``sequence`` background (phase correlation, searched within this radius) is
         undone before the comparison; default 4; 0 disables (``jitter_px`` alone then
-        absorbs the shake).
+        absorbs the shake). A larger displacement of the background's samples is a moving
+        camera (:func:`registration`, :attr:`Background.holds`): the runs say so.
     background_fraction : float
         The ``first-frame`` background is the first frame's median over a window of this
         share of the frame's shorter side, in (0, 1]; default 0.5 (larger than any target,
@@ -253,6 +254,8 @@ class Background:
 
     A ``static`` one (the sequence's, :func:`quantile_background`) is registered to every frame
     and never updated; the others follow the frames (:func:`update_background`).
+    ``moved_samples`` counts the frames a static one was taken over that the camera saw from
+    elsewhere (:func:`registration`); see :attr:`holds`.
     """
 
     estimate: np.ndarray = field(repr=False)
@@ -261,6 +264,15 @@ class Background:
         default=None, repr=False
     )  # (H, W, 3) float32 CIELAB, when fused
     static: bool = False
+    moved_samples: int = 0
+
+    @property
+    def holds(self) -> bool:
+        """Whether a still camera's background describes the frames: False for a static one when
+        more than a quarter of its samples were seen from elsewhere (a moving camera: the
+        low quantile of misregistered views is no view's background, and its foreground is the
+        scene's own texture)."""
+        return not self.static or 4 * self.moved_samples <= self.frames
 
 
 @functools.lru_cache(maxsize=8)
@@ -287,6 +299,82 @@ def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float,
     large moving object cannot pass for the camera's motion; sub-pixel by a parabola through
     the peak and its neighbours on each axis. Accurate to about 0.3 px on textured frames.
     """
+    return _peak_shift(*_phase_surface(ref, img), max_px)
+
+
+VIEW_SEARCH_FRACTION = 0.25
+""":func:`registration` looks for a view's displacement up to this share of the frame's shorter
+side."""
+
+
+def registration(
+    ref: np.ndarray, img: np.ndarray, max_px: float
+) -> tuple[tuple[float, float], bool]:
+    """:func:`frame_shift` of ``img`` against ``ref``, and whether ``img`` is seen from elsewhere:
+    a camera that moved by more than ``max_px``, so that no registration within it holds.
+
+    The view has moved when one of the phase correlation's :data:`VIEW_PEAKS` highest local
+    maxima within :data:`VIEW_SEARCH_FRACTION` of the frame's shorter side lies beyond
+    ``max_px`` and explains the frame better: the median absolute difference of ``img`` and
+    ``ref`` carried by it is under :data:`VIEW_RESIDUAL_RATIO` of the one at the shift within
+    ``max_px`` (both over the pixels the two views share, at the correlation's resolution). A
+    large warm target moving through a still view raises a peak at its own displacement, often
+    the highest where the view's texture is weak, but carrying the whole view there does not
+    make the frames agree (the median ignores what the target covers), while a moved camera's
+    displacement does. A camera that moved by more than the search, or a view with no texture,
+    is not noticed.
+    """
+    r, f = _phase_surface(ref, img)
+    shift = _peak_shift(r, f, max_px)
+    h, w = r.shape
+    k = max(min(round(VIEW_SEARCH_FRACTION * min(ref.shape) / f), h // 2 - 1, w // 2 - 1), 1)
+    far = _lags(r, k)
+    peaks = (far == cv2.dilate(far, np.ones((3, 3), np.uint8))) & (far > 0)
+    ys, xs = np.nonzero(peaks)
+    order = np.argsort(far[ys, xs])[::-1][:VIEW_PEAKS]
+    lags = [(int(xs[i]) - k, int(ys[i]) - k) for i in order]
+    lags = [(x, y) for x, y in lags if max(abs(x), abs(y)) * f > max_px]
+    if not lags:
+        return shift, False
+    a, b = _at_factor(ref, f), _at_factor(img, f)
+    near = _residual(a, b, shift[0] / f, shift[1] / f)
+    best = min(_residual(a, b, x, y) for x, y in lags)
+    return shift, bool(best < VIEW_RESIDUAL_RATIO * near)
+
+
+VIEW_PEAKS = 5
+""":func:`registration` tries this many of the correlation's highest peaks beyond the shake."""
+
+
+VIEW_RESIDUAL_RATIO = 0.75
+""":func:`registration`'s share of the residual a displacement beyond ``max_px`` must reach."""
+
+
+def _at_factor(a: np.ndarray, f: int) -> np.ndarray:
+    a = a.astype(np.float32)
+    if f == 1:
+        return a
+    return cv2.resize(a, (a.shape[1] // f, a.shape[0] // f), interpolation=cv2.INTER_AREA)
+
+
+def _residual(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> float:
+    """Median absolute difference of ``b`` and ``a`` carried by ``(dx, dy)`` (rounded), over the
+    pixels both cover."""
+    h, w = a.shape
+    x, y = round(dx), round(dy)
+    sa = a[max(-y, 0) : h - max(y, 0), max(-x, 0) : w - max(x, 0)]
+    sb = b[max(y, 0) : h - max(-y, 0), max(x, 0) : w - max(-x, 0)]
+    return float(np.median(np.abs(sb - sa))) if sa.size else float("inf")
+
+
+def _lags(r: np.ndarray, k: int) -> np.ndarray:
+    """The correlation surface at lags -k..k on both axes."""
+    return np.roll(np.roll(r, k, axis=0), k, axis=1)[: 2 * k + 1, : 2 * k + 1]
+
+
+def _phase_surface(ref: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, int]:
+    """The phase correlation surface of ``ref`` and ``img`` (Hann-windowed, at half resolution
+    when the shorter side is at least 200 px) and that factor."""
     f = 2 if min(ref.shape) >= 200 else 1
     a = ref.astype(np.float32)
     b = img.astype(np.float32)
@@ -300,12 +388,15 @@ def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float,
     cross = cv2.mulSpectrums(fb, fa, 0, conjB=True)
     mag = cv2.magnitude(cross[..., 0], cross[..., 1])
     cross /= np.maximum(mag, 1e-9)[..., None]
-    r = cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)
+    return cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE), f
+
+
+def _peak_shift(r: np.ndarray, f: int, max_px: float) -> tuple[float, float]:
+    """The shift at the highest value of surface ``r`` (factor ``f``) within ``max_px``."""
+    h, w = r.shape
     k = math.ceil(max_px / f) + 1  # one lag beyond the limit, for the parabola at the limit
     k = min(k, h // 2 - 1, w // 2 - 1)
-    sub = np.roll(np.roll(r, k, axis=0), k, axis=1)[
-        : 2 * k + 1, : 2 * k + 1
-    ]  # lags -k..k on both axes
+    sub = _lags(r, k)
     iy, ix = np.unravel_index(int(np.argmax(sub)), sub.shape)
 
     def vertex(m: float, c: float, p: float) -> float:
@@ -342,14 +433,19 @@ def quantile_background(
     registered by the same shifts.
 
     A target is part of it only where it covers a pixel in more than ``1 - background_quantile``
-    of the frames.
+    of the frames. ``moved_samples`` counts the frames seen from elsewhere than the first or than
+    the frame before them (:func:`registration`), whatever ``max_shift_px``.
     """
     if not greys:
         raise ValueError("quantile_background needs at least one frame")
     ref = greys[0].astype(np.float32)
-    shifts = [(0.0, 0.0)] + [
-        frame_shift(ref, g, cfg.max_shift_px) if cfg.max_shift_px > 0 else (0.0, 0.0)
-        for g in greys[1:]
+    reg = [registration(ref, g, cfg.max_shift_px) for g in greys[1:]]
+    shifts = [(0.0, 0.0)] + [s if cfg.max_shift_px > 0 else (0.0, 0.0) for s, _ in reg]
+    # a sample moved when seen from elsewhere than the first, or than the sample before it (a
+    # pan soon leaves the first view's search)
+    moved = [
+        m or registration(greys[i], greys[i + 1], cfg.max_shift_px)[1]
+        for i, (_, m) in enumerate(reg)
     ]
     stack = np.stack(
         [
@@ -365,7 +461,9 @@ def quantile_background(
             np.stack([shift_image(v, -dx, -dy) for v, (dx, dy) in zip(labs, shifts, strict=True)]),
             axis=0,
         ).astype(np.float32)
-    return Background(est.astype(np.float32), len(greys), vis, static=True)
+    return Background(
+        est.astype(np.float32), len(greys), vis, static=True, moved_samples=sum(moved)
+    )
 
 
 def bootstrap_background(grey: np.ndarray, cfg: DetectionConfig) -> Background:

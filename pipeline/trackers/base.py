@@ -108,6 +108,11 @@ class CoreEngine(Generic[S]):
         channel = self.core.detector_channel(tuple(seq.channels))
         self._source = sequence_background(seq, channel, self.detection)
 
+    def camera(self) -> dict[str, object] | None:
+        """What the detector's sequence background said of the camera so far
+        (:meth:`pipeline.io.background.SequenceBackground.camera`); None without one."""
+        return self._source.camera() if self._source is not None else None
+
     def _background(self, index: int):
         if self._source is None:
             return None

@@ -18,6 +18,11 @@ The system of the ROI feature-matching fusion paper, no initial boxes needed:
    with its last one by ``resume_min_correlation`` resumes it at once, and a new track
    confirmed there takes its id (the detector missed the target for a while).
 
+On the frames where the sequence's background does not hold (a moving camera:
+:attr:`pipeline.stages.detection.Background.holds`), unmatched regions start no new tracks
+(they are the scene's own texture as often as targets); tracks already there go on, and a
+dormant one still resumes; the run says so in one line and in ``summary.json`` (``camera``).
+
 Statuses: ``tentative`` (not yet confirmed; in targets.csv, not in tracks.csv),
 ``tracking``, ``merged`` (not detected on its own but its prediction lies inside a detected
 blob: it coasts inside that blob, and the blob starts no new track), ``occluded-severe``
@@ -34,6 +39,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -184,6 +190,9 @@ class DetectAndAssociate:
     """
 
     cfg: DetectConfig
+    on_moving_camera: ClassVar[str] = "they start no new tracks there"
+    """What the tracker does where a moving camera's frames defeat the background (the end of
+    the run's one line about it)."""
 
     @property
     def kalman(self) -> kalman.KalmanConfig:
@@ -478,6 +487,7 @@ class DetectAndAssociate:
         Returns the next free id."""
         a = self.cfg.association
         next_id = state.next_id
+        holds = fm.background is None or fm.background.holds
         for j in fm.unmatched:
             r = fm.regions[j]
             if j in fm.group or any(
@@ -486,6 +496,8 @@ class DetectAndAssociate:
             ):
                 continue  # a blob around a known target (merged targets): not a new one
             t = self._resumed(r, fm.grey, frame, ledger)
+            if t is None and not holds:
+                continue  # a moving camera: the region is as likely the scene's texture
             if t is None:
                 t = _new_track(next_id, r, fm.grey, frame, self.kalman)
                 at = f"({r.centroid[0]:.0f},{r.centroid[1]:.0f})"
