@@ -80,3 +80,35 @@ def test_output_fingerprint_saves_and_checks(tmp_path):
         timeout=600,
     )
     assert r.returncode == 1 and "output differs: fast-s0" in r.stderr
+
+
+def _tool(name: str):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tools" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_mot_peers_get_the_detections_the_detect_tracker_uses(tmp_path):
+    """Accepted IR regions of at least 40 px boundary, 1-based, score 1 / C2 (capped at 1)."""
+    rois = tmp_path / "rois.csv"
+    head = "frame,x_px,y_px,w_px,h_px,cx_px,cy_px,perimeter_px,area_px,aspect,c1_per_px,c2,"
+    rois.write_text(
+        head + "accepted,reason\n"
+        "1,10.0,20.0,8.0,30.0,14,35,76.0,240,3.75,0.3,1.6,1,ok\n"
+        "1,50.0,20.0,4.0,5.0,52,22,18.0,20,1.2,0.9,1.2,1,ok\n"  # under 40 px of boundary
+        "1,90.0,20.0,8.0,30.0,94,35,76.0,240,3.75,0.3,0.5,1,visible\n"  # visible-only region
+        "2,11.5,20.0,8.0,30.0,15,35,76.0,240,3.75,0.3,0.8,1,ok\n"  # C2 < 1: score 1
+        "2,60.0,20.0,30.0,30.0,75,35,120.0,300,1.0,0.4,6.0,0,complex\n"
+    )
+    rows = _tool("mot_peers")._dets(rois, 40.0)
+    assert rows == ["1,-1,11.00,21.00,8.00,30.00,0.625", "2,-1,12.50,21.00,8.00,30.00,1.000"]
+
+
+def test_the_mot_peers_tool_says_when_their_environment_is_missing(tmp_path, capsys):
+    code = _tool("mot_peers").main(
+        ["--seeds", "0-0", "--out", str(tmp_path), "--peer-python", str(tmp_path / "nope")]
+    )
+    assert code == 1 and "tools/mot_peer_venv.sh" in capsys.readouterr().out

@@ -1,0 +1,162 @@
+"""The detection-driven tracker against the field's multi-object trackers on the same detections.
+
+For each random scene (:mod:`pipeline.synthetic.family`): ``dualtrack detect`` writes the
+detector's regions; the detections the ``detect`` tracker itself uses (accepted IR regions of
+at least ``detect.association.min_perimeter_px`` boundary, score ``1 / C2`` as ``det.txt``
+writes it) go to ByteTrack, OC-SORT and SORT (Roboflow's ``trackers`` at their default
+parameters, run by ``tools/mot_peer_worker.py`` in their own environment, made by
+``tools/mot_peer_venv.sh``), once with those scores and once with every score 1 (their
+two-stage association then sees one class of detection); ``dualtrack track --tracker detect``
+runs on the same scene. Every result is scored by ``dualtrack evaluate`` (ids matched by the
+IDF1 assignment). Prints per tracker the mean, 10th percentile and worst of IDF1, with MOTA,
+HOTA and purity means, and the trackers' own seconds.
+
+    tools/mot_peer_venv.sh                      # once: .venv-mot
+    python tools/mot_peers.py --seeds 1500-1519 --out runs/mot-peers [--json r.json]
+
+Scenes are generated into ``OUT/scenes`` unless there; development seeds are 0-999, test seeds
+1000-1999 (score those once, never tune on them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+PEERS = ("bytetrack", "ocsort", "sort")
+
+
+def _dets(rois: Path, min_perimeter_px: float) -> list[str]:
+    """``det.txt`` rows (1-based) of the regions the ``detect`` tracker uses."""
+    rows = []
+    with rois.open() as f:
+        for r in csv.DictReader(f):
+            if r["accepted"] != "1" or r["reason"] != "ok":
+                continue
+            if float(r["perimeter_px"]) < min_perimeter_px:
+                continue
+            x, y, w, h = (float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
+            conf = min(1.0, 1.0 / max(float(r["c2"]), 1.0))
+            rows.append(f"{r['frame']},-1,{x + 1:.2f},{y + 1:.2f},{w:.2f},{h:.2f},{conf:.3f}")
+    return rows
+
+
+def _quiet(fn, *a):
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        return fn(*a)
+
+
+def prepare(scene: Path, out: Path, min_perimeter_px: float) -> dict[str, object]:
+    """Detections and the ``detect`` tracker's run of one scene; the peers' job."""
+    from pipeline.cli import main
+
+    run = out / scene.name
+    if not (run / "det" / "summary.json").is_file():
+        _quiet(main, ["detect", str(scene), "--out", str(run / "det"), "--no-rrd", "--force"])
+    if not (run / "detect" / "summary.json").is_file():
+        args = ["track", str(scene), "--tracker", "detect", "--out", str(run / "detect")]
+        _quiet(main, [*args, "--no-rrd", "--no-plots", "--force"])
+    rows = _dets(run / "det" / "rois.csv", min_perimeter_px)
+    (run / "dets.txt").write_text("\n".join(rows) + "\n")
+    ones = [",".join([*r.split(",")[:6], "1"]) for r in rows]
+    (run / "dets-one.txt").write_text("\n".join(ones) + "\n")
+    frames = json.loads((run / "det" / "summary.json").read_text())["frames"]
+    return {"run": run, "frames": frames}
+
+
+def score(scene: Path, tracks: Path) -> dict[str, float]:
+    from pipeline.eval import evaluate_files
+
+    m = evaluate_files(scene, tracks, id_rule="assign")
+    pur = m.get("purity")
+    return {
+        "idf1": float(m.get("idf1") or 0.0),
+        "mota": float(m.get("mota") or 0.0),
+        "hota": float(m.get("hota") or 0.0),
+        "purity": float(pur["overall"]) if isinstance(pur, dict) else 0.0,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    from pipeline.bench import random_scene_set
+    from pipeline.config import load_config
+    from pipeline.synthetic.family import parse_seed_range
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", required=True, help="A-B, e.g. 1500-1519")
+    ap.add_argument("--targets", default="2-3", help="targets per scene (default 2-3)")
+    ap.add_argument("--out", type=Path, default=Path("runs/mot-peers"))
+    ap.add_argument("--peer-python", type=Path, default=ROOT / ".venv-mot" / "bin" / "python")
+    ap.add_argument("--json", type=Path)
+    a = ap.parse_args(argv)
+    if not a.peer_python.is_file():
+        print(f"error: no peer environment at {a.peer_python} (make it: tools/mot_peer_venv.sh)")
+        return 1
+    lo, hi = (int(v) for v in a.targets.split("-")) if "-" in a.targets else (int(a.targets),) * 2
+    scenes = random_scene_set(
+        seeds=parse_seed_range(a.seeds), targets=(lo, hi), out=a.out / "scenes", progress=False
+    )
+    per = load_config(None, []).detect.association.min_perimeter_px
+    jobs, runs = [], []
+    for s in scenes:
+        p = prepare(s, a.out / "runs", per)
+        run = p["run"]
+        assert isinstance(run, Path)
+        runs.append((s, run))
+        for kind in ("", "-one"):
+            jobs.append(
+                {
+                    "dets": str(run / f"dets{kind}.txt"),
+                    "frames": p["frames"],
+                    "out": {t: str(run / f"{t}{kind}.csv") for t in PEERS},
+                }
+            )
+    (a.out / "jobs.json").write_text(json.dumps(jobs))
+    done = subprocess.run(
+        [str(a.peer_python), str(ROOT / "tools" / "mot_peer_worker.py"), str(a.out / "jobs.json")],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    peer_info = json.loads(done.stdout.strip().splitlines()[-1])
+    names = ["detect"] + [f"{t}{k}" for t in PEERS for k in ("", "-one")]
+    table: dict[str, list[dict[str, float]]] = {n: [] for n in names}
+    for s, run in runs:
+        table["detect"].append(score(s, run / "detect" / "tracks.csv"))
+        for n in names[1:]:
+            table[n].append(score(s, run / f"{n}.csv"))
+    print(
+        f"{len(runs)} scenes (seeds {a.seeds}, {a.targets} targets); peers: trackers "
+        f"{peer_info['versions']['trackers']}, supervision {peer_info['versions']['supervision']}"
+        "; '-one': every detection scored 1"
+    )
+    print("| tracker | IDF1 mean | IDF1 p10 | IDF1 worst | MOTA | HOTA | purity |")
+    print("|---|---|---|---|---|---|---|")
+    summary = {}
+    for n, rows in table.items():
+        v = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+        summary[n] = {k: float(x.mean()) for k, x in v.items()}
+        summary[n]["idf1_p10"] = float(np.percentile(v["idf1"], 10))
+        summary[n]["idf1_worst"] = float(v["idf1"].min())
+        d = summary[n]
+        print(
+            f"| {n} | {d['idf1']:.3f} | {d['idf1_p10']:.3f} | {d['idf1_worst']:.3f} | "
+            f"{d['mota']:.3f} | {d['hota']:.3f} | {d['purity']:.3f} |"
+        )
+    if a.json:
+        result = {"seeds": a.seeds, "trackers": summary, **peer_info}
+        a.json.write_text(json.dumps(result, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
