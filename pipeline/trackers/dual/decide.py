@@ -36,7 +36,10 @@ Missing (hidden or lost; :data:`MISSING`)
 
 The other parts decide by rules of the same enum: ``SPLIT_BLOB`` (a member of a group that
 split takes its blob), ``WALKED_IN`` (a target given cut by the frame's border takes its first
-clean contour), the ``MERGE_*`` placements of a group's members and ``GIVEN`` (frame 1).
+clean contour), the ``MERGE_*`` placements of a group's members, ``GIVEN`` (frame 1), and
+``SHARED``: after every target's own decision, where two targets' measurements are one object
+(``shared_iou``, off by default), the better match keeps it and the other is ``merged`` with it
+or coasts hidden (:meth:`Decider.yields`; the frame-level step is the tracker's).
 """
 
 from __future__ import annotations
@@ -75,6 +78,7 @@ class Case(enum.StrEnum):
     COAST = "coast"
     LOST = "lost"
     MERGED = "merged"
+    SHARED = "shared"  # on one object with another target, which took the measurement
 
 
 class Rule(enum.StrEnum):
@@ -98,6 +102,7 @@ class Rule(enum.StrEnum):
     NO_EVIDENCE = "no-evidence"
     LEFT_THE_FRAME = "left-the-frame"
     MISSING_TOO_LONG = "{missing}-frames-without-a-measurement"
+    SHARED = "measurement-taken-by-{reason}"
     SPLIT_BLOB = "split-blob"
     WALKED_IN = "walked-in"
     MERGE_FOREGROUND = "foreground"
@@ -633,6 +638,51 @@ class Decider:
             contour_scale=True,
             stage="levelset",
         )
+
+    def yields(self, owner: int, box: BBox, prior: BBox) -> Decision:
+        """A target whose measurement ``box`` target ``owner`` took (a frame-level decision over
+        both, :meth:`owner_of`); it learns nothing (``SHARED``). Where its own prediction
+        ``prior`` lies on that object too (IoU at least ``shared_iou``), the two are one blob:
+        it is ``merged`` and follows the blob (a measurement with the colour's noise); else the
+        measurement pulled it onto the other target and it coasts, partly hidden."""
+        if prior.iou(box) >= self.cfg.shared_iou:
+            return decision(
+                Case.SHARED,
+                Rule.SHARED,
+                box,
+                self.cfg.noise_scale_colour,
+                TargetStatus.MERGED,
+                reason=f"T{owner}",
+            )
+        return decision(
+            Case.COAST, Rule.SHARED, status=TargetStatus.OCCLUDED_PARTIAL, reason=f"T{owner}"
+        )
+
+    def shared(self, a: BBox | None, b: BBox | None) -> bool:
+        """Whether two targets' measurements ``a`` and ``b`` are one object (IoU at least
+        ``shared_iou``)."""
+        if a is None or b is None or self.cfg.shared_iou <= 0:
+            return False
+        return a.iou(b) >= self.cfg.shared_iou
+
+    def owner_of(self, rho: tuple[float, float], reach: tuple[float, float]) -> int:
+        """Which of two targets (0 or 1) owns a shared measurement: the one whose colour model
+        matches it better by ``shared_colour_margin`` (``rho``, each at its own box), else the
+        one whose prediction lies nearer (``reach``: distance over its size).
+
+        Examples
+        --------
+        >>> from pipeline.tracker_config import DeciderConfig
+        >>> d = Decider(DeciderConfig())
+        >>> d.owner_of((0.6, 0.9), (0.1, 0.8)), d.owner_of((0.88, 0.9), (0.1, 0.8))
+        (1, 0)
+        >>> d.owner_of((float("nan"), 0.9), (0.5, 0.2))
+        1
+        """
+        m = self.cfg.shared_colour_margin
+        if not (math.isnan(rho[0]) or math.isnan(rho[1])) and abs(rho[0] - rho[1]) >= m:
+            return 0 if rho[0] > rho[1] else 1
+        return 0 if reach[0] <= reach[1] else 1
 
     def walked_in(self, box: BBox) -> Decision:
         """A target given cut by the frame's border takes its first clean contour once it has

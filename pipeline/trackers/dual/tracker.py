@@ -42,6 +42,13 @@ Done = tuple[DualTarget, TargetResult, list[Event]]
 """A target's new state, its result and its events this frame."""
 
 
+def _reach(m: single.Measured) -> float:
+    """How far a target's measurement lies from its prediction, in its own sizes."""
+    b, p, (w, h) = m.decision.box, m.evidence.prior, m.evidence.ref_size
+    assert b is not None
+    return float(((b.cx - p.cx) / max(w, 1.0)) ** 2 + ((b.cy - p.cy) / max(h, 1.0)) ** 2) ** 0.5
+
+
 def mode_of(frames: FramePair) -> str:
     """``dual`` with both channels, else ``ir`` or ``visible``: the cues follow the channels
     present."""
@@ -215,10 +222,14 @@ class Dual:
         if self.groups is not None and state.mode != "visible":
             groups = self.groups.groups(steps, live, frames.index)
         done, memories = self._groups(frames, groups, steps, state, timing)
-        for i, cs in steps.items():
-            if i not in done:
-                others = tuple(b for j, b in live.items() if j != i)
-                done[i] = self._alone(frames, cs, state, timing, others)
+        alone = {
+            i: self._measure_alone(frames, cs, state, timing)
+            for i, cs in steps.items()
+            if i not in done
+        }
+        for i, (m, ev) in self._one_object_one_target(alone).items():
+            others = tuple(b for j, b in live.items() if j != i)
+            done[i] = single.update(self, frames, m, state.mode, timing, ev, others)
         new, results, events = [], [], []
         for t in state.targets:
             nt, r, ev = done[t.id]
@@ -259,24 +270,62 @@ class Dual:
         add_time(timing, "kalman", clock)
         return self.colour.step(frames, t, prior, y0, mode, timing)
 
-    def _alone(
+    def _measure_alone(
         self,
         frames: FramePair,
         cs: ColourStep,
         state: DualState,
         timing: dict[str, float],
-        others: tuple[BBox, ...],
-    ) -> Done:
-        """A target in no group this frame; one whose group dissolved without a visible split
-        starts again from its prediction."""
+    ) -> tuple[single.Measured, list[Event]]:
+        """The cues and decision of a target in no group this frame; one whose group dissolved
+        without a visible split starts again from its prediction."""
         ev: list[Event] = []
         start = None
-        if cs.t.status == TargetStatus.MERGED:
+        if cs.t.status == TargetStatus.MERGED and cs.t.case == Case.MERGED.value:
             text = f"T{cs.t.id} separated (merge test no longer holds)"
             ev.append(Event(EventKind.SPLIT, text, (cs.t.id,)))
             start = cs.box_prior.center
-        m = single.measure(self, frames, cs, state.mode, timing, start, state.background)
-        return single.update(self, frames, m, state.mode, timing, ev, others)
+        return single.measure(self, frames, cs, state.mode, timing, start, state.background), ev
+
+    def _one_object_one_target(
+        self, alone: dict[int, tuple[single.Measured, list[Event]]]
+    ) -> dict[int, tuple[single.Measured, list[Event]]]:
+        """The frame-level step after every target's own decision: where two targets'
+        measurements land on one object (:meth:`Decider.shared`), the better match keeps it
+        (:meth:`Decider.owner_of`) and the other coasts, hidden, learning nothing
+        (:meth:`Decider.yields`). Pairs are settled from the most overlapping down, so a target
+        that yielded takes part in no later pair."""
+        dec = self.decider
+        boxes = {i: m.decision.box for i, (m, _) in alone.items()}
+        pairs = sorted(
+            (
+                (boxes[i].iou(boxes[j]), i, j)  # type: ignore[union-attr]
+                for i in alone
+                for j in alone
+                if i < j and dec.shared(boxes[i], boxes[j])
+            ),
+            reverse=True,
+        )
+        out = dict(alone)
+        for _, i, j in pairs:
+            mi, mj = out[i][0], out[j][0]
+            if not (mi.decision.measured and mj.decision.measured):
+                continue
+            rho = (self._match(mi), self._match(mj))
+            reach = (_reach(mi), _reach(mj))
+            owner, other = (i, j) if dec.owner_of(rho, reach) == 0 else (j, i)
+            m, ev = out[other]
+            box = m.decision.box
+            assert box is not None
+            d = self.lifecycle.settle(dec.yields(owner, box, m.evidence.prior), m.evidence)
+            out[other] = (dataclasses.replace(m, decision=d), ev)
+        return out
+
+    def _match(self, m: single.Measured) -> float:
+        """The colour match of a target's own model at its measurement (NaN without colour)."""
+        if not m.evidence.colour_informative:
+            return float("nan")
+        return self.colour.match_at(m.cs, m.decision.box)
 
     # ---------------------------------------------------------------------- merged groups
     def _group(

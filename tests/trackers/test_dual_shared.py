@@ -1,0 +1,38 @@
+"""The frame-level rule that gives one object to one target (``Decider.shared``,
+``owner_of``, ``yields``)."""
+
+from __future__ import annotations
+
+import math
+
+from pipeline.tracker_config import DeciderConfig
+from pipeline.trackers.dual.decide import Case, Decider, Rule
+from pipeline.types import BBox, TargetStatus
+
+ON = Decider(DeciderConfig(shared_iou=0.5))
+
+
+def test_two_measurements_are_one_object_from_the_configured_overlap():
+    a = BBox(0, 0, 20, 40)
+    assert ON.shared(a, BBox(4, 0, 20, 40))  # IoU 16/24 = 0.667
+    assert not ON.shared(a, BBox(8, 0, 20, 40))  # IoU 12/28 = 0.43
+    assert not ON.shared(a, None)
+    assert not Decider(DeciderConfig()).shared(a, a)  # off by default: both take it
+
+
+def test_the_better_colour_match_owns_the_object_else_the_nearer_prediction():
+    assert ON.owner_of((0.95, 0.70), (2.0, 0.0)) == 0  # colour decides, whatever the motion
+    assert ON.owner_of((0.70, 0.95), (0.0, 2.0)) == 1
+    assert ON.owner_of((0.90, 0.93), (0.1, 0.4)) == 0  # within the margin: the motion
+    assert ON.owner_of((math.nan, 0.93), (0.6, 0.4)) == 1  # no colour: the motion
+
+
+def test_the_target_that_yields_is_merged_on_the_object_or_hidden_and_learns_nothing():
+    box = BBox(100, 50, 20, 40)
+    on_it = ON.yields(3, box, BBox(102, 50, 20, 40))
+    assert (on_it.case, on_it.rule) == (Case.SHARED, Rule.SHARED)
+    assert on_it.status == TargetStatus.MERGED
+    assert on_it.box == box and not on_it.learn and on_it.why == "measurement-taken-by-T3"
+    elsewhere = ON.yields(3, box, BBox(140, 50, 20, 40))
+    assert (elsewhere.case, elsewhere.status) == (Case.COAST, TargetStatus.OCCLUDED_PARTIAL)
+    assert elsewhere.box is None and not elsewhere.learn
