@@ -20,6 +20,11 @@ def test_two_measurements_are_one_object_from_the_configured_overlap():
     assert not Decider(DeciderConfig()).shared(a, a)  # off by default: both take it
 
 
+def test_the_target_that_held_the_object_keeps_it_against_one_coming_back_to_it():
+    assert ON.owner_of((0.6, 0.95), (1.0, 0.0), held=(True, False)) == 0
+    assert ON.owner_of((0.95, 0.6), (0.0, 1.0), held=(False, True)) == 1
+
+
 def test_the_better_colour_match_owns_the_object_else_the_nearer_prediction():
     assert ON.owner_of((0.95, 0.70), (2.0, 0.0)) == 0  # colour decides, whatever the motion
     assert ON.owner_of((0.70, 0.95), (0.0, 2.0)) == 1
@@ -28,11 +33,12 @@ def test_the_better_colour_match_owns_the_object_else_the_nearer_prediction():
 
 
 def test_the_target_that_yields_is_merged_on_the_object_or_hidden_and_learns_nothing():
-    box = BBox(100, 50, 20, 40)
-    on_it = ON.yields(3, box, BBox(102, 50, 20, 40))
+    box, prior = BBox(100, 50, 20, 40), BBox(102, 50, 20, 40)
+    on_it = ON.yields(3, box, prior)
     assert (on_it.case, on_it.rule) == (Case.SHARED, Rule.SHARED)
     assert on_it.status == TargetStatus.MERGED
-    assert on_it.box == box and not on_it.learn and on_it.why == "measurement-taken-by-T3"
+    # it keeps to its own motion: its prediction is its measurement (not the other's box)
+    assert on_it.box == prior and not on_it.learn and on_it.why == "measurement-taken-by-T3"
     elsewhere = ON.yields(3, box, BBox(140, 50, 20, 40))
     assert (elsewhere.case, elsewhere.status) == (Case.COAST, TargetStatus.OCCLUDED_PARTIAL)
     assert elsewhere.box is None and not elsewhere.learn

@@ -643,13 +643,15 @@ class Decider:
         """A target whose measurement ``box`` target ``owner`` took (a frame-level decision over
         both, :meth:`owner_of`); it learns nothing (``SHARED``). Where its own prediction
         ``prior`` lies on that object too (IoU at least ``shared_iou``), the two are one blob:
-        it is ``merged`` and follows the blob (a measurement with the colour's noise); else the
-        measurement pulled it onto the other target and it coasts, partly hidden."""
+        it is ``merged`` and keeps to its own motion (its prediction is its measurement, so it
+        neither counts as missing nor follows the other's box, and leaves the blob with its own
+        velocity); else the measurement pulled it onto the other target and it coasts, partly
+        hidden."""
         if prior.iou(box) >= self.cfg.shared_iou:
             return decision(
                 Case.SHARED,
                 Rule.SHARED,
-                box,
+                prior,
                 self.cfg.noise_scale_colour,
                 TargetStatus.MERGED,
                 reason=f"T{owner}",
@@ -665,10 +667,18 @@ class Decider:
             return False
         return a.iou(b) >= self.cfg.shared_iou
 
-    def owner_of(self, rho: tuple[float, float], reach: tuple[float, float]) -> int:
-        """Which of two targets (0 or 1) owns a shared measurement: the one whose colour model
-        matches it better by ``shared_colour_margin`` (``rho``, each at its own box), else the
-        one whose prediction lies nearer (``reach``: distance over its size).
+    def owner_of(
+        self,
+        rho: tuple[float, float],
+        reach: tuple[float, float],
+        held: tuple[bool, bool] = (True, True),
+    ) -> int:
+        """Which of two targets (0 or 1) owns a shared measurement: the one that held it (was
+        measured last frame, ``held``) against one that comes back to it from a coast (the
+        newcomer's model may have learned the object while it sat on it wrongly); between
+        equals, the one whose colour model matches it better by ``shared_colour_margin``
+        (``rho``, each at its own box), else the one whose prediction lies nearer (``reach``:
+        distance over its size).
 
         Examples
         --------
@@ -678,7 +688,11 @@ class Decider:
         (1, 0)
         >>> d.owner_of((float("nan"), 0.9), (0.5, 0.2))
         1
+        >>> d.owner_of((0.6, 0.9), (0.1, 0.8), held=(True, False))
+        0
         """
+        if held[0] != held[1]:
+            return 0 if held[0] else 1
         m = self.cfg.shared_colour_margin
         if not (math.isnan(rho[0]) or math.isnan(rho[1])) and abs(rho[0] - rho[1]) >= m:
             return 0 if rho[0] > rho[1] else 1

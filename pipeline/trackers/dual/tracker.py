@@ -313,7 +313,8 @@ class Dual:
                 continue
             rho = (self._match(mi), self._match(mj))
             reach = (_reach(mi), _reach(mj))
-            owner, other = (i, j) if dec.owner_of(rho, reach) == 0 else (j, i)
+            held = (mi.evidence.measured_last, mj.evidence.measured_last)
+            owner, other = (i, j) if dec.owner_of(rho, reach, held) == 0 else (j, i)
             m, ev = out[other]
             box = m.decision.box
             assert box is not None
