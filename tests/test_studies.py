@@ -92,7 +92,8 @@ def _tool(name: str):
 
 
 def test_the_mot_peers_get_the_detections_the_detect_tracker_uses(tmp_path):
-    """Accepted IR regions of at least 40 px boundary, 1-based, score 1 / C2 (capped at 1)."""
+    """Accepted IR regions of at least 40 px boundary, 1-based, with their score (1 / C2, capped
+    at 1, in files without one)."""
     rois = tmp_path / "rois.csv"
     head = "frame,x_px,y_px,w_px,h_px,cx_px,cy_px,perimeter_px,area_px,aspect,c1_per_px,c2,"
     rois.write_text(
@@ -105,6 +106,13 @@ def test_the_mot_peers_get_the_detections_the_detect_tracker_uses(tmp_path):
     )
     rows = _tool("mot_peers")._dets(rois, 40.0)
     assert rows == ["1,-1,11.00,21.00,8.00,30.00,0.625", "2,-1,12.50,21.00,8.00,30.00,1.000"]
+    scored = tmp_path / "scored.csv"
+    scored.write_text(
+        head + "accepted,reason,contrast_sigma,score\n"
+        "1,10.0,20.0,8.0,30.0,14,35,76.0,240,3.75,0.3,1.6,1,ok,9.70,0.911\n"
+        "1,60.0,20.0,30.0,30.0,75,35,120.0,300,1.0,0.4,6.0,0,complex,,\n"
+    )
+    assert _tool("mot_peers")._dets(scored, 40.0) == ["1,-1,11.00,21.00,8.00,30.00,0.911"]
 
 
 def test_the_mot_peers_tool_says_when_their_environment_is_missing(tmp_path, capsys):

@@ -2,8 +2,8 @@
 
 For each random scene (:mod:`pipeline.synthetic.family`): ``dualtrack detect`` writes the
 detector's regions; the detections the ``detect`` tracker itself uses (accepted IR regions of
-at least ``detect.association.min_perimeter_px`` boundary, score ``1 / C2`` as ``det.txt``
-writes it) go to ByteTrack, OC-SORT and SORT (Roboflow's ``trackers`` at their default
+at least ``detect.association.min_perimeter_px`` boundary, with the score ``det.txt``
+carries) go to ByteTrack, OC-SORT and SORT (Roboflow's ``trackers`` at their default
 parameters, run by ``tools/mot_peer_worker.py`` in their own environment, made by
 ``tools/mot_peer_venv.sh``), once with those scores and once with every score 1 (their
 two-stage association then sees one class of detection); ``dualtrack track --tracker detect``
@@ -36,7 +36,8 @@ PEERS = ("bytetrack", "ocsort", "sort")
 
 
 def _dets(rois: Path, min_perimeter_px: float) -> list[str]:
-    """``det.txt`` rows (1-based) of the regions the ``detect`` tracker uses."""
+    """``det.txt`` rows (1-based) of the regions the ``detect`` tracker uses (the score of
+    ``rois.csv``; ``1 / C2`` for files written before it had one)."""
     rows = []
     with rois.open() as f:
         for r in csv.DictReader(f):
@@ -45,7 +46,8 @@ def _dets(rois: Path, min_perimeter_px: float) -> list[str]:
             if float(r["perimeter_px"]) < min_perimeter_px:
                 continue
             x, y, w, h = (float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
-            conf = min(1.0, 1.0 / max(float(r["c2"]), 1.0))
+            shape = min(1.0, 1.0 / max(float(r["c2"]), 1.0))
+            conf = float(r["score"]) if r.get("score") else shape
             rows.append(f"{r['frame']},-1,{x + 1:.2f},{y + 1:.2f},{w:.2f},{h:.2f},{conf:.3f}")
     return rows
 

@@ -1,9 +1,11 @@
 """Outputs of ``dualtrack detect``: ``det.txt``, ``rois.csv`` and ``detections.rrd``.
 
 * ``det.txt``: MOTChallenge detection rows ``frame,-1,x,y,w,h,conf,-1,-1,-1`` (1-based boxes,
-  as MOTChallenge files and ``tracks.csv`` are), one per accepted ROI;
+  as MOTChallenge files and ``tracks.csv`` are), one per accepted ROI, ``conf`` its score
+  (:func:`pipeline.stages.detection.score_regions`);
 * ``rois.csv``: header; every region found, accepted or not, with its features
-  ``frame,x_px,y_px,w_px,h_px,cx_px,cy_px,perimeter_px,area_px,aspect,c1_per_px,c2,accepted,reason``;
+  ``frame,x_px,y_px,w_px,h_px,cx_px,cy_px,perimeter_px,area_px,aspect,c1_per_px,c2,accepted,reason,
+  contrast_sigma,score`` (the last two for accepted regions);
 * ``detections.rrd``: the frame (``<channel>/image``, source bytes), the STDM
   (``<channel>/std_map``, JPEG, scaled so that the detection floor is mid-grey), the
   accepted ROIs (``<channel>/rois``, green) and the rejected ones with their reason
@@ -40,6 +42,8 @@ ROI_HEADER = (
     "c2",
     "accepted",
     "reason",
+    "contrast_sigma",
+    "score",
 )
 
 
@@ -56,7 +60,7 @@ class DetectionFiles:
     def write(self, frame: int, d: Detections) -> None:
         for r in d.regions:
             b = r.box
-            conf = min(1.0, 1.0 / max(r.c2, 1.0))
+            conf = r.score if r.score == r.score else min(1.0, 1.0 / max(r.c2, 1.0))
             x, y = b.x + MOT_BASE, b.y + MOT_BASE
             self._det.add(f"{frame},-1,{x:.2f},{y:.2f},{b.w:.2f},{b.h:.2f},{conf:.3f},-1,-1,-1")
         for r in (*d.regions, *d.rejected):
@@ -96,6 +100,8 @@ def _row(frame: int, r: Region) -> list[object]:
         f"{r.c2:.3f}",
         int(r.accepted),
         r.reason,
+        "" if r.contrast != r.contrast else f"{r.contrast:.2f}",
+        "" if r.score != r.score else f"{r.score:.3f}",
     ]
 
 

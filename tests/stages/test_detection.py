@@ -358,3 +358,29 @@ def test_a_target_at_the_ground_s_temperature_is_found_in_visible_with_weak_ir_s
     assert d.regions[0].centroid == pytest.approx((10 + 60 + 5, 62), abs=2.0)
     assert abs(d.regions[0].box.h - 24) <= 4
     assert not detect(irs[12], DetectionConfig(visible_support_k=0), bg, viss[12]).regions
+
+
+@pytest.mark.parametrize("excess", [20.0, 30.0, 50.0])
+def test_a_region_scores_its_contrast_over_the_background(excess):
+    """A block ``excess`` grey levels warmer than a flat background with noise 4: contrast
+    ``excess`` over the frame's robust deviation from the background (4.45 for the rounded
+    noise), score ``1 - exp(-contrast / foreground_k)``."""
+    rng = np.random.default_rng(8)
+    bg = np.full((120, 160), 90.0, np.float32)
+    frame = bg + rng.normal(0, 4, bg.shape).astype(np.float32)
+    frame[40:90, 60:80] += excess
+    from pipeline.stages.detection import Background
+
+    d = detect(
+        np.clip(frame, 0, 255).astype(np.uint8),
+        DetectionConfig(max_shift_px=0),
+        Background(bg, 25, static=True),
+    )
+    (r,) = d.regions
+    sigma = 1.4826 * np.median(np.abs(np.clip(frame, 0, 255).astype(np.uint8) - bg))
+    assert 4.2 < sigma < 4.7 and r.contrast == pytest.approx(excess / sigma, rel=0.05)
+    assert r.score == pytest.approx(1 - np.exp(-r.contrast / 4.0), abs=1e-9)
+    stdm_only = detect(np.clip(frame, 0, 255).astype(np.uint8), DetectionConfig(method="stdm"))
+    assert all(
+        np.isnan(q.contrast) and q.score == min(1.0, 1 / max(q.c2, 1)) for q in stdm_only.regions
+    )
