@@ -126,7 +126,9 @@ class RedetectConfig(Section):
         is covered over successive searches). The cost of a search grows with it.
     detection : DetectionConfig
         The detector of the whole-frame search (run on the IR frame, the visible one without
-        IR; its visible-channel regions are never asked for).
+        IR; its visible-channel regions are never asked for). Its regions are not grown
+        (``grow_k`` 0 here): the search takes their centres, and grown ones moved the
+        development range both ways (P@20 -0.002 on one target, +0.004 on many).
     """
 
     section = "redetect"
@@ -136,7 +138,7 @@ class RedetectConfig(Section):
     global_after_frames: int = param(12, ge=1)
     every_frames: int = param(2, ge=1)
     candidates: int = param(12, ge=1)
-    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    detection: DetectionConfig = field(default_factory=lambda: DetectionConfig(grow_k=0.0))
 
 
 @dataclass(frozen=True)

@@ -112,6 +112,21 @@ class DetectionConfig(Section):
         temperature that the visible channel shows, while the visible channel's own false
         foreground (texture shifted by shake, lighting) has no IR support. Lower values find
         fainter targets and let in more false regions.
+    grow_k : float
+        With ``foreground`` and the sequence's background (a running one is too rough to grow
+        into): the regions grow over the weaker foreground connected to them, the pixels
+        warmer than the background by this many robust deviations (hysteresis,
+        :func:`weak_foreground`, :func:`grow`), so that legs cooler than the torso, a
+        cyclist's wheels and cold clothing join the body, >= 0; default 1.5; 0 turns it
+        off. On the development range's many-target scenes it lifts the truth target-frames
+        with a detection at IoU >= 0.5 from 0.50 to 0.59 (fragments 16 % -> 9 %, oversize
+        17 % -> 20 %) and the ``detect`` tracker's IDF1 from 0.38 to 0.42; lower values join
+        more of a target and more of what lies around it.
+    grow_visible : bool
+        The regions also grow over the visible foreground connected to them (a registered
+        visible frame with its background, :func:`visible_foreground`); default False: it
+        removes more fragments (6 %) but joins neighbours and shadows (oversize 31 %), and
+        finds fewer targets whole (0.51).
     window_px : int
         Side of the STDM window, odd, in [3, 31]; default 7 (about 1/4 to 1/2 of a target's
         width: high on the target's boundary).
@@ -176,6 +191,8 @@ class DetectionConfig(Section):
     jitter_px: int = param(1, ge=0, le=5)
     fuse_visible: bool = False
     visible_support_k: float = param(4.0, ge=0)
+    grow_k: float = param(1.5, ge=0)
+    grow_visible: bool = False
     window_px: int = param(7, ge=3, le=31, odd=True)
     threshold: str = param("global", choices=("global", "local"))
     threshold_window_px: int = param(61, ge=9, le=255, odd=True)
@@ -496,6 +513,76 @@ def foreground(grey: np.ndarray, bg: Background, cfg: DetectionConfig) -> np.nda
         k = 2 * cfg.jitter_px + 1
         ref = cv2.dilate(ref, np.ones((k, k), np.uint8))
     return ((g - ref) > thr).astype(np.uint8)
+
+
+def weak_foreground(
+    grey: np.ndarray, bg: Background, cfg: DetectionConfig, visible: np.ndarray | None = None
+) -> np.ndarray:
+    """The weaker foreground a region may grow over (uint8 0/1): the pixels warmer than the
+    background (its largest value within ``jitter_px``) by ``grow_k`` robust deviations of the
+    frame's difference and by half ``foreground_min_contrast``, and the ``visible``
+    foreground."""
+    low = np.zeros(grey.shape, np.uint8)
+    if cfg.grow_k > 0:
+        g = grey.astype(np.float32)
+        med, sigma = robust_level(g - bg.estimate)
+        thr = max(0.5 * cfg.foreground_min_contrast, med + cfg.grow_k * sigma)
+        ref = bg.estimate
+        if cfg.jitter_px > 0:
+            k = 2 * cfg.jitter_px + 1
+            ref = cv2.dilate(ref, np.ones((k, k), np.uint8))
+        low = ((g - ref) > thr).astype(np.uint8)
+    if visible is not None:
+        low |= visible
+    return low
+
+
+SKIRT_PX = 3
+""":func:`grow` drops grown parts narrower than this (the blur skirt round a core), px."""
+
+
+@functools.lru_cache(maxsize=8)
+def _ellipse(size: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+
+
+BODY_SHARE = 1 / 3
+""":func:`grow`: two cores of one weak component are two bodies when the smaller has at least this
+share of the larger's area (a head or legs apart from a torso have less)."""
+
+
+def grow(core: np.ndarray, weak: np.ndarray) -> np.ndarray:
+    """``core`` (uint8 0/1 foreground) joined by the ``weak`` foreground connected to it
+    (hysteresis): legs cooler than the torso, a cyclist's wheels, cold clothing and the parts
+    the core broke into join one region. A weak component that holds two bodies' cores (the
+    smaller at least :data:`BODY_SHARE` of the larger) is not grown: the weak pixels between
+    two people would join them."""
+    if not weak.any():
+        return core
+    n, comp = cv2.connectedComponents(weak | core, connectivity=8)
+    m, cores, stats, _ = cv2.connectedComponentsWithStats(core, connectivity=8)
+    if m <= 1:
+        return core
+    area = stats[1:, cv2.CC_STAT_AREA].astype(float)
+    # the weak component holding every core (read at one pixel of each)
+    flat = cores.ravel()
+    idx = np.flatnonzero(flat)
+    pixel = np.zeros(m, np.int64)
+    pixel[flat[idx]] = idx
+    owner = comp.ravel()[pixel[1:]]
+    largest = np.zeros(n)
+    np.maximum.at(largest, owner, area)
+    bodies = np.zeros(n, int)
+    np.add.at(bodies, owner, (area >= BODY_SHARE * largest[owner]).astype(int))
+    grown = np.zeros(n, bool)
+    grown[owner] = True
+    grown &= bodies <= 1
+    grown[0] = False
+    # the grown part without the blur skirt around every core (a ring of a pixel or two that the
+    # weaker threshold adds all round): an opening keeps legs and wheels, drops the ring
+    extra = (grown[comp] & (core == 0)).astype(np.uint8)
+    extra = cv2.morphologyEx(extra, cv2.MORPH_OPEN, _ellipse(SKIRT_PX))
+    return ((extra > 0) | (core > 0)).astype(np.uint8)
 
 
 def _toward(est: np.ndarray, x: np.ndarray, fg: np.ndarray, step: float) -> np.ndarray:
@@ -819,6 +906,8 @@ def detect(
             vfg = visible_foreground(lab, seen.visible, cfg)
             if cfg.fuse_visible:
                 fg |= vfg
+    if bg.static and (cfg.grow_k > 0 or (cfg.grow_visible and vfg is not None)):
+        fg = grow(fg, weak_foreground(grey, seen, cfg, vfg if cfg.grow_visible else None))
     mask, contours = _clean_contours(fg, cfg)
     contours = split_touching(contours, cfg.split_core_fraction, cfg.split_min_core_px)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)

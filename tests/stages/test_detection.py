@@ -251,7 +251,9 @@ def test_a_sequence_background_registered_to_a_shaken_frame_finds_its_targets():
     # them
     _, faint, fboxes = walking_frames(np.random.default_rng(8), 100, shake=True, contrast=15.0)
     fbg = quantile_background([faint[i] for i in np.linspace(0, 99, 25).round().astype(int)], cfg)
-    unregistered = DetectionConfig(perimeter_px=(60.0, 600.0), max_shift_px=0.0)
+    # the registration alone: growing the regions (grow_k) fills more of them either way
+    cfg = DetectionConfig(perimeter_px=(60.0, 600.0), grow_k=0.0)
+    unregistered = DetectionConfig(perimeter_px=(60.0, 600.0), max_shift_px=0.0, grow_k=0.0)
 
     def covered(c: DetectionConfig) -> float:  # share of the people's pixels that are foreground
         got = want = 0
@@ -384,3 +386,21 @@ def test_a_region_scores_its_contrast_over_the_background(excess):
     assert all(
         np.isnan(q.contrast) and q.score == min(1.0, 1 / max(q.c2, 1)) for q in stdm_only.regions
     )
+
+
+@pytest.mark.parametrize("grow_k,rows", [(1.5, (40, 100)), (0.0, (40, 70))])
+def test_a_walker_with_cold_legs_gets_a_whole_body_box(grow_k, rows):
+    """A torso 30 grey levels warmer than the ground and legs only 9 warmer (under the
+    foreground threshold of 4 deviations, 11.9 here): grown, the box spans torso and legs."""
+    from pipeline.stages.detection import Background
+
+    rng = np.random.default_rng(9)
+    bg = np.full((140, 160), 90.0, np.float32)
+    frame = bg + rng.normal(0, 2, bg.shape).astype(np.float32)
+    frame[40:70, 70:90] += 30  # torso (and head)
+    frame[70:100, 72:88] += 9  # legs
+    cfg = DetectionConfig(max_shift_px=0, grow_k=grow_k)
+    d = detect(np.clip(frame, 0, 255).astype(np.uint8), cfg, Background(bg, 25, static=True))
+    (r,) = d.regions
+    assert r.box.y == pytest.approx(rows[0], abs=1.5)
+    assert r.box.y2 == pytest.approx(rows[1], abs=1.5)
