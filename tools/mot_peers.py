@@ -14,8 +14,10 @@ HOTA and purity means, and the trackers' own seconds.
     tools/mot_peer_venv.sh                      # once: .venv-mot
     python tools/mot_peers.py --seeds 1500-1519 --out runs/mot-peers [--json r.json]
 
-Scenes are generated into ``OUT/scenes`` unless there; development seeds are 0-999, test seeds
-1000-1999 (score those once, never tune on them).
+Scenes are generated into ``OUT/scenes`` unless there, and the detections and the ``detect``
+runs of an earlier call into the same ``OUT`` are reused (``--force`` makes them again, after a
+code change); development seeds are 0-999, test seeds 1000-1999 (score those once, never tune
+on them).
 """
 
 from __future__ import annotations
@@ -57,14 +59,15 @@ def _quiet(fn, *a):
         return fn(*a)
 
 
-def prepare(scene: Path, out: Path, min_perimeter_px: float) -> dict[str, object]:
-    """Detections and the ``detect`` tracker's run of one scene; the peers' job."""
+def prepare(scene: Path, out: Path, min_perimeter_px: float, force: bool) -> dict[str, object]:
+    """Detections and the ``detect`` tracker's run of one scene (kept from an earlier run into
+    ``out`` unless ``force``); the peers' job."""
     from pipeline.cli import main
 
     run = out / scene.name
-    if not (run / "det" / "summary.json").is_file():
+    if force or not (run / "det" / "summary.json").is_file():
         _quiet(main, ["detect", str(scene), "--out", str(run / "det"), "--no-rrd", "--force"])
-    if not (run / "detect" / "summary.json").is_file():
+    if force or not (run / "detect" / "summary.json").is_file():
         args = ["track", str(scene), "--tracker", "detect", "--out", str(run / "detect")]
         _quiet(main, [*args, "--no-rrd", "--no-plots", "--force"])
     rows = _dets(run / "det" / "rois.csv", min_perimeter_px)
@@ -99,6 +102,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("runs/mot-peers"))
     ap.add_argument("--peer-python", type=Path, default=ROOT / ".venv-mot" / "bin" / "python")
     ap.add_argument("--json", type=Path)
+    ap.add_argument(
+        "--force", action="store_true", help="detect and track again (after a code change)"
+    )
     a = ap.parse_args(argv)
     if not a.peer_python.is_file():
         print(f"error: no peer environment at {a.peer_python} (make it: tools/mot_peer_venv.sh)")
@@ -110,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     per = load_config(None, []).detect.association.min_perimeter_px
     jobs, runs = [], []
     for s in scenes:
-        p = prepare(s, a.out / "runs", per)
+        p = prepare(s, a.out / "runs", per, a.force)
         run = p["run"]
         assert isinstance(run, Path)
         runs.append((s, run))
