@@ -500,38 +500,56 @@ def bootstrap_background(grey: np.ndarray, cfg: DetectionConfig) -> Background:
     return Background(cv2.resize(med, (W, H), interpolation=cv2.INTER_LINEAR), 0)
 
 
-def foreground(grey: np.ndarray, bg: Background, cfg: DetectionConfig) -> np.ndarray:
-    """Pixels warmer than the background (uint8 0/1): by ``foreground_k`` robust deviations of the
-    frame's difference from it and by ``foreground_min_contrast``, against the background's largest
-    value within ``jitter_px`` (a shaking edge is not foreground)."""
-    g = grey.astype(np.float32)
-    diff = g - bg.estimate
-    med, sigma = robust_level(diff)
-    thr = max(cfg.foreground_min_contrast, med + cfg.foreground_k * sigma)
-    ref = bg.estimate
-    if cfg.jitter_px > 0:
-        k = 2 * cfg.jitter_px + 1
-        ref = cv2.dilate(ref, np.ones((k, k), np.uint8))
-    return ((g - ref) > thr).astype(np.uint8)
+@dataclass(frozen=True)
+class Difference:
+    """A frame against its background, once for every test that reads it: ``diff`` (frame minus
+    background), its robust ``level`` and ``deviation`` (:func:`robust_level`), and ``excess``
+    (frame minus the background's largest value within ``jitter_px``: a shaking edge is not
+    warmer)."""
 
+    diff: np.ndarray = field(repr=False)
+    excess: np.ndarray = field(repr=False)
+    level: float
+    deviation: float
 
-def weak_foreground(
-    grey: np.ndarray, bg: Background, cfg: DetectionConfig, visible: np.ndarray | None = None
-) -> np.ndarray:
-    """The weaker foreground a region may grow over (uint8 0/1): the pixels warmer than the
-    background (its largest value within ``jitter_px``) by ``grow_k`` robust deviations of the
-    frame's difference and by half ``foreground_min_contrast``, and the ``visible``
-    foreground."""
-    low = np.zeros(grey.shape, np.uint8)
-    if cfg.grow_k > 0:
+    @classmethod
+    def of(cls, grey: np.ndarray, bg: Background, cfg: DetectionConfig) -> Difference:
         g = grey.astype(np.float32)
-        med, sigma = robust_level(g - bg.estimate)
-        thr = max(0.5 * cfg.foreground_min_contrast, med + cfg.grow_k * sigma)
+        diff = g - bg.estimate
+        med, sigma = robust_level(diff)
         ref = bg.estimate
         if cfg.jitter_px > 0:
             k = 2 * cfg.jitter_px + 1
             ref = cv2.dilate(ref, np.ones((k, k), np.uint8))
-        low = ((g - ref) > thr).astype(np.uint8)
+        return cls(diff, g - ref, med, sigma)
+
+    def warmer(self, k: float, min_contrast: float) -> np.ndarray:
+        """Pixels (uint8 0/1) warmer than the background by ``k`` deviations and by
+        ``min_contrast`` grey levels."""
+        thr = max(min_contrast, self.level + k * self.deviation)
+        return (self.excess > thr).astype(np.uint8)
+
+
+def foreground(
+    grey: np.ndarray, bg: Background, cfg: DetectionConfig, d: Difference | None = None
+) -> np.ndarray:
+    """Pixels warmer than the background (uint8 0/1): by ``foreground_k`` robust deviations of the
+    frame's difference from it and by ``foreground_min_contrast``, against the background's largest
+    value within ``jitter_px`` (a shaking edge is not foreground); ``d`` is
+    ``Difference.of(grey, bg, cfg)`` where the caller has it."""
+    d = d if d is not None else Difference.of(grey, bg, cfg)
+    return d.warmer(cfg.foreground_k, cfg.foreground_min_contrast)
+
+
+def weak_foreground(
+    d: Difference, cfg: DetectionConfig, visible: np.ndarray | None = None
+) -> np.ndarray:
+    """The weaker foreground a region may grow over (uint8 0/1): the pixels warmer than the
+    background by ``grow_k`` robust deviations (:meth:`Difference.warmer`) and by half
+    ``foreground_min_contrast``, and the ``visible`` foreground."""
+    low = np.zeros(d.diff.shape, np.uint8)
+    if cfg.grow_k > 0:
+        low = d.warmer(cfg.grow_k, 0.5 * cfg.foreground_min_contrast)
     if visible is not None:
         low |= visible
     return low
@@ -893,7 +911,8 @@ def detect(
             None if bg.visible is None else shift_image(bg.visible, dx, dy),
             True,
         )
-    fg = foreground(grey, seen, cfg)
+    diff = Difference.of(grey, seen, cfg)
+    fg = foreground(grey, seen, cfg, diff)
     lab = vfg = None
     if (
         cfg.uses_visible
@@ -907,14 +926,14 @@ def detect(
             if cfg.fuse_visible:
                 fg |= vfg
     if bg.static and (cfg.grow_k > 0 or (cfg.grow_visible and vfg is not None)):
-        fg = grow(fg, weak_foreground(grey, seen, cfg, vfg if cfg.grow_visible else None))
+        fg = grow(fg, weak_foreground(diff, cfg, vfg if cfg.grow_visible else None))
     mask, contours = _clean_contours(fg, cfg)
     contours = split_touching(contours, cfg.split_core_fraction, cfg.split_min_core_px)
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
     if vfg is not None and not cfg.fuse_visible and cfg.visible_support_k > 0:
         more, less = visible_supported(vfg, grey, seen.estimate, ok, cfg)
         ok, bad = ok + more, bad + less
-    ok = score_regions(ok, grey.astype(np.float32) - seen.estimate, cfg)
+    ok = score_regions(ok, diff, cfg)
     if bg.static:
         return Detections(tuple(ok), tuple(bad), np.zeros((1, 1), np.float32), mask, bg)
     # the background learns slowly only under what looks like a target (a region kept): a band or
@@ -937,12 +956,10 @@ def detect(
     )
 
 
-def score_regions(
-    found: list[Region], diff: np.ndarray | None, cfg: DetectionConfig
-) -> list[Region]:
+def score_regions(found: list[Region], d: Difference | None, cfg: DetectionConfig) -> list[Region]:
     """``found`` with their ``contrast`` and ``score``.
 
-    With the foreground method (``diff``: the frame minus its registered background) a
+    With the foreground method (``d``: the frame against its registered background) a
     region's contrast is the median excess of its pixels over the background, in robust
     deviations of the frame's difference (the units of ``foreground_k``), and its score
     ``1 - exp(-contrast / foreground_k)``: 0.63 for a region just at the foreground threshold,
@@ -952,13 +969,12 @@ def score_regions(
     for ``1 / C2``). Without a background (``stdm``) the score is the compactness
     ``min(1, 1 / C2)``, the contrast NaN.
     """
-    if diff is None:
+    if d is None:
         return [replace(r, score=min(1.0, 1.0 / max(r.c2, 1.0))) for r in found]
-    med, sigma = robust_level(diff)
     k = max(cfg.foreground_k, 1e-6)
     out = []
     for r in found:
-        c = _region_contrast(diff, r, med, max(sigma, 1e-6))
+        c = _region_contrast(d.diff, r, d.level, max(d.deviation, 1e-6))
         out.append(replace(r, contrast=c, score=float(1.0 - math.exp(-max(c, 0.0) / k))))
     return out
 
