@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from pipeline.cli import main
+from pipeline.synthetic import ONE_TARGET_SCENES
 from tests.conftest import write_boxes, write_frames, write_pair
 from tests.rrd_helpers import boxes_at, open_store, rows
 
@@ -163,20 +164,9 @@ def test_synth_list(capsys):
     rc, out, _ = _run(["synth", "--list"], capsys)
     names = [ln.split()[0] for ln in out.splitlines()]
     assert rc == 0 and len(names) >= 8
-    for required in (
-        "dusk",
-        "shadows",
-        "approach",
-        "lookalike",
-        "hot-distractor",
-        "crossover",
-        "occluder",
-        "fast",
-        "crossing2",
-        "crossing3",
-        "meet-part",
-    ):
+    for required in (*ONE_TARGET_SCENES, "crossing2", "crossing3", "meet-part"):
         assert required in names
+    assert len(ONE_TARGET_SCENES) == 8
 
 
 def test_console_script_and_module_agree(tmp_path):

@@ -11,15 +11,13 @@ from pipeline.io.results import TrackTable
 from pipeline.io.sequence import Truth
 from pipeline.stages.detection import Detections, Region
 from pipeline.types import BBox
+from tests.eval.boxes import held
 
 N = 4
 
 
-def _const(box, frames=range(N)):
-    a = np.full((N, 4), np.nan)
-    for f in frames:
-        a[f] = box
-    return a
+def _const(box, frames=None):
+    return held(box, N, frames)
 
 
 def test_only_the_boxes_assigned_to_a_distractor_are_dropped():

@@ -8,15 +8,13 @@ import pytest
 from pipeline.eval import evaluate
 from pipeline.io.results import TrackTable
 from pipeline.io.sequence import Truth
+from tests.eval.boxes import held
 
 N = 10
 
 
-def _const(box, frames=range(N)):
-    a = np.full((N, 4), np.nan)
-    for f in frames:
-        a[f] = box
-    return a
+def _const(box, frames=None):
+    return held(box, N, frames)
 
 
 def _truth(vis1):
