@@ -291,10 +291,10 @@ class Dual:
         self, alone: dict[int, tuple[single.Measured, list[Event]]]
     ) -> dict[int, tuple[single.Measured, list[Event]]]:
         """The frame-level step after every target's own decision: where two targets'
-        measurements land on one object (:meth:`Decider.shared`), the better match keeps it
-        (:meth:`Decider.owner_of`) and the other coasts, hidden, learning nothing
-        (:meth:`Decider.yields`). Pairs are settled from the most overlapping down, so a target
-        that yielded takes part in no later pair."""
+        measurements land on one object (:meth:`Decider.shared`), one keeps it
+        (:meth:`Decider.owner_of`) and the other learns nothing, merged with it or coasting
+        hidden (:meth:`Decider.yields`). Pairs are settled from the most overlapping down; a
+        target that yielded takes part in no later pair."""
         dec = self.decider
         boxes = {i: m.decision.box for i, (m, _) in alone.items()}
         pairs = sorted(
@@ -307,7 +307,10 @@ class Dual:
             reverse=True,
         )
         out = dict(alone)
+        yielded: set[int] = set()
         for _, i, j in pairs:
+            if i in yielded or j in yielded:
+                continue
             mi, mj = out[i][0], out[j][0]
             if not (mi.decision.measured and mj.decision.measured):
                 continue
@@ -320,6 +323,7 @@ class Dual:
             assert box is not None
             d = self.lifecycle.settle(dec.yields(owner, box, m.evidence.prior), m.evidence)
             out[other] = (dataclasses.replace(m, decision=d), ev)
+            yielded.add(other)
         return out
 
     def _match(self, m: single.Measured) -> float:
