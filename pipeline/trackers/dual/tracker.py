@@ -295,36 +295,48 @@ class Dual:
         (:meth:`Decider.owner_of`) and the other learns nothing, merged with it or coasting
         hidden (:meth:`Decider.yields`). Pairs are settled from the most overlapping down; a
         target that yielded takes part in no later pair."""
-        dec = self.decider
-        boxes = {i: m.decision.box for i, (m, _) in alone.items()}
-        pairs = sorted(
-            (
-                (boxes[i].iou(boxes[j]), i, j)  # type: ignore[union-attr]
-                for i in alone
-                for j in alone
-                if i < j and dec.shared(boxes[i], boxes[j])
-            ),
-            reverse=True,
-        )
         out = dict(alone)
         yielded: set[int] = set()
-        for _, i, j in pairs:
+        for i, j in self._shared_pairs(alone):
             if i in yielded or j in yielded:
                 continue
-            mi, mj = out[i][0], out[j][0]
-            if not (mi.decision.measured and mj.decision.measured):
-                continue
-            rho = (self._match(mi), self._match(mj))
-            reach = (_reach(mi), _reach(mj))
-            held = (mi.evidence.measured_last, mj.evidence.measured_last)
-            owner, other = (i, j) if dec.owner_of(rho, reach, held) == 0 else (j, i)
+            owner, other = self._settle(i, j, out[i][0], out[j][0])
             m, ev = out[other]
             box = m.decision.box
             assert box is not None
-            d = self.lifecycle.settle(dec.yields(owner, box, m.evidence.prior), m.evidence)
+            d = self.lifecycle.settle(
+                self.decider.yields(owner, box, m.evidence.prior), m.evidence
+            )
             out[other] = (dataclasses.replace(m, decision=d), ev)
             yielded.add(other)
         return out
+
+    def _shared_pairs(
+        self, alone: dict[int, tuple[single.Measured, list[Event]]]
+    ) -> list[tuple[int, int]]:
+        """The pairs of measured targets whose boxes are one object, most overlapping first."""
+        boxes = {
+            i: m.decision.box
+            for i, (m, _) in alone.items()
+            if m.decision.measured and m.decision.box is not None
+        }
+        pairs = sorted(
+            (
+                (a.iou(boxes[j]), i, j)
+                for i, a in boxes.items()
+                for j in boxes
+                if i < j and self.decider.shared(a, boxes[j])
+            ),
+            reverse=True,
+        )
+        return [(i, j) for _, i, j in pairs]
+
+    def _settle(self, i: int, j: int, mi: single.Measured, mj: single.Measured) -> tuple[int, int]:
+        """Which of targets ``i`` and ``j`` owns their shared object: ``(owner, other)``."""
+        rho = (self._match(mi), self._match(mj))
+        reach = (_reach(mi), _reach(mj))
+        held = (mi.evidence.measured_last, mj.evidence.measured_last)
+        return (i, j) if self.decider.owner_of(rho, reach, held) == 0 else (j, i)
 
     def _match(self, m: single.Measured) -> float:
         """The colour match of a target's own model at its measurement (NaN without colour)."""
