@@ -38,6 +38,11 @@ import numba
 import numpy as np
 import scipy.fft as fft
 
+try:  # SciPy's own FFT engine, called without scipy.fft's per-call dispatch (same results)
+    from scipy.fft._pocketfft import pypocketfft as _pocketfft
+except ImportError:  # pragma: no cover (a SciPy without it: its public functions)
+    _pocketfft = None
+
 from pipeline.params import Section, param
 from pipeline.types import BBox
 
@@ -514,6 +519,36 @@ def group_gains(f: np.ndarray, groups: np.ndarray) -> np.ndarray:
     return gains
 
 
+def _rfft2(x: np.ndarray) -> np.ndarray:
+    """``scipy.fft.rfft2(x, axes=(0, 1))`` of a real array, bit for bit."""
+    if _pocketfft is None:  # pragma: no cover
+        return fft.rfft2(x, axes=(0, 1))
+    return _pocketfft.r2c(x, (0, 1), True, 0, None, 1)
+
+
+def _irfft2(X: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``scipy.fft.irfft2(X, s=shape, axes=(0, 1))`` of a complex spectrum of that shape, bit for
+    bit."""
+    if _pocketfft is None or X.shape[:2] != (shape[0], shape[1] // 2 + 1):  # pragma: no cover
+        return fft.irfft2(X, s=shape, axes=(0, 1))
+    return _pocketfft.c2r(X, (0, 1), shape[1], False, 2, None, 1)
+
+
+def _rfft_rows(x: np.ndarray) -> np.ndarray:
+    """``scipy.fft.rfft(x, axis=1)`` of a real 2-D array, bit for bit."""
+    if _pocketfft is None:  # pragma: no cover
+        return fft.rfft(x, axis=1)
+    return _pocketfft.r2c(x, (1,), True, 0, None, 1)
+
+
+def _irfft(X: np.ndarray, n: int) -> np.ndarray:
+    """``scipy.fft.irfft(X, n=n)`` of a complex 1-D spectrum of ``n // 2 + 1`` values, bit for
+    bit."""
+    if _pocketfft is None or X.shape != (n // 2 + 1,) or not np.iscomplexobj(X):
+        return fft.irfft(X, n=n)  # pragma: no cover
+    return _pocketfft.c2r(X, (0,), n, False, 2, None, 1)
+
+
 def _translation_spectra(
     vis, ir, win: Window, cfg: AppearanceConfig, gains: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -533,7 +568,7 @@ def _translation_spectra(
         cfg.intensity_clip,
         _hann(f.shape[0], f.shape[1]),
     )
-    return fft.rfft2(g, axes=(0, 1)), gains
+    return _rfft2(g), gains
 
 
 @cache
@@ -692,7 +727,7 @@ def train(
     den = np.sum((F * np.conj(F)).real, axis=2)
     st = like.scale_template if like is not None else scale_template((box.w, box.h), cfg)
     if cfg.scale_filter and scale:
-        Fs = fft.rfft(_scale_samples(vis, ir, box.center, (box.w, box.h), cfg, st), axis=1)
+        Fs = _rfft_rows(_scale_samples(vis, ir, box.center, (box.w, box.h), cfg, st))
         s_num, s_den = (
             np.conj(_scale_label_fft(cfg.scale_count))[None, :] * Fs,
             np.sum((Fs * np.conj(Fs)).real, axis=0),
@@ -836,9 +871,9 @@ def detect(
     shape = (Z.shape[0], model.template[0] // cfg.cell_px)
     both = all(model.channels)
     a, b = _correlate(Z, model.num, inv, _visible_channels(cfg) if both else Z.shape[2])
-    resp = resp_v = fft.irfft2(a, s=shape, axes=(0, 1))
+    resp = resp_v = _irfft2(a, shape)
     if both:  # the two channels' responses apart: how each supports the joint peak
-        resp_i = fft.irfft2(b, s=shape, axes=(0, 1))
+        resp_i = _irfft2(b, shape)
         resp = resp_v + resp_i
     dy, dx, peak, iy, ix = _peak(resp)
     fx, fy = win.frame_px
@@ -867,10 +902,9 @@ def rescale(
         return d
     sz = d.size
     S = _scale_samples(vis, ir, d.center, sz, cfg, model.scale_template)
-    rs = fft.irfft(
-        np.sum(np.conj(model.s_num) * fft.rfft(S, axis=1), axis=0)
-        / (model.s_den + cfg.lambda_reg),
-        n=cfg.scale_count,
+    rs = _irfft(
+        np.sum(np.conj(model.s_num) * _rfft_rows(S), axis=0) / (model.s_den + cfg.lambda_reg),
+        cfg.scale_count,
     )
     rs = np.fft.fftshift(rs)
     k = int(np.argmax(rs))

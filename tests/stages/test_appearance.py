@@ -159,3 +159,19 @@ def test_bad_configs_are_rejected():
     ):
         with pytest.raises(ValueError, match="appearance"):
             A.AppearanceConfig(**kw)
+
+
+@pytest.mark.parametrize("shape", [(24, 12, 22), (16, 24, 13), (24, 9, 4)])
+def test_the_fft_helpers_equal_scipy_fft_bit_for_bit(shape):
+    import scipy.fft as fft
+
+    rng = np.random.default_rng(1)
+    x = rng.random(shape, dtype=np.float32)
+    X = fft.rfft2(x, axes=(0, 1))
+    assert np.array_equal(A._rfft2(x), X)
+    spec = X[..., 0].astype(np.complex128)
+    assert np.array_equal(A._irfft2(spec, shape[:2]), fft.irfft2(spec, s=shape[:2], axes=(0, 1)))
+    rows = rng.random((shape[0], 13), dtype=np.float32)
+    assert np.array_equal(A._rfft_rows(rows), fft.rfft(rows, axis=1))
+    s = fft.rfft(rows, axis=1).sum(axis=0).astype(np.complex128)
+    assert np.array_equal(A._irfft(s, 13), fft.irfft(s, n=13))
