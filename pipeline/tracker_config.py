@@ -180,6 +180,17 @@ class DeciderConfig(Section):
         Where the colour is seen, a contour or a filter detection whose colour match is under
         ``colour_min_rho`` is not taken when the mean shift matches this much better
         elsewhere, in (0, 1]; default 0.2.
+    colour_deny_rho : float
+        After every target's own decision, a target whose measurement lies mostly inside
+        another's (``inside_fraction`` of its area) and whose colour matches there under this
+        yields to the other (a frame-level step, as ``shared_iou``), in [0, 1]; default 0.35
+        (0: off). A small target's filter can follow a part of a larger neighbour, confident,
+        long after its colour stopped matching; alone in the frame the same low match may be
+        the target's own colour changing, so nothing is refused there. Raising it makes a
+        target yield on a weaker doubt, a small one in front of a large one included.
+    inside_fraction : float
+        With ``colour_deny_rho``: the share of a measurement's area inside another target's
+        that makes it lie on that target, in (0, 1]; default 0.6.
     occlusion_rho : float
         A colour match this strong carries a target whose IR has faded, in [0, 1]; default
         0.75.
@@ -232,6 +243,8 @@ class DeciderConfig(Section):
     jump_sigma: float = param(3.0, ge=0)
     colour_min_rho: float = param(0.6, ge=0, le=1)
     colour_veto_margin: float = param(0.2, gt=0, le=1)
+    colour_deny_rho: float = param(0.35, ge=0, le=1)
+    inside_fraction: float = param(0.6, gt=0, le=1)
     occlusion_rho: float = param(0.75, ge=0, le=1)
     colour_trust_rho: float = param(0.85, ge=0, le=1)
     partial_area_ratio: float = param(0.6, gt=0, lt=1)
@@ -488,7 +501,7 @@ class DualConfig(Section):
             appearance=None,
             extent=None,
             redetect=None,
-            decider=DeciderConfig(colour_trust_rho=1.0),
+            decider=DeciderConfig(colour_trust_rho=1.0, colour_deny_rho=0.0),
             groups=GroupConfig(
                 merge_position="eq11",
                 inside_blob=False,

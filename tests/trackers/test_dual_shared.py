@@ -42,3 +42,24 @@ def test_the_target_that_yields_is_merged_on_the_object_or_hidden_and_learns_not
     elsewhere = ON.yields(3, box, BBox(140, 50, 20, 40))
     assert (elsewhere.case, elsewhere.status) == (Case.COAST, TargetStatus.OCCLUDED_PARTIAL)
     assert elsewhere.box is None and not elsewhere.learn
+
+
+DENY = Decider(DeciderConfig(colour_deny_rho=0.35, inside_fraction=0.6))
+
+
+def test_a_measurement_inside_another_target_with_the_wrong_colour_lies_on_it():
+    small, big = BBox(110, 60, 20, 20), BBox(100, 40, 40, 80)  # wholly inside
+    assert DENY.on_other(small, big, 0.10)
+    assert not DENY.on_other(small, big, 0.50)  # its own colour: a target in front of another
+    assert not DENY.on_other(small, big, math.nan)  # no colour to ask
+    half = BBox(130, 60, 20, 20)  # 10 of 20 px wide inside: 0.5 of its area < 0.6
+    assert not DENY.on_other(half, big, 0.10)
+    assert DENY.on_other(BBox(126, 60, 20, 20), big, 0.10)  # 14 of 20: 0.7
+    assert not Decider(DeciderConfig(colour_deny_rho=0.0)).on_other(small, big, 0.0)  # 0: off
+
+
+def test_whether_the_yielding_target_stays_on_the_object_can_be_given():
+    box = BBox(100, 50, 20, 40)
+    far = BBox(300, 50, 20, 40)
+    assert DENY.yields(2, box, far, on_object=True).status == TargetStatus.MERGED
+    assert DENY.yields(2, box, box, on_object=False).case == Case.COAST

@@ -39,7 +39,9 @@ split takes its blob), ``WALKED_IN`` (a target given cut by the frame's border t
 clean contour), the ``MERGE_*`` placements of a group's members, ``GIVEN`` (frame 1), and
 ``SHARED``: after every target's own decision, where two targets' measurements are one object
 (``shared_iou``, off by default), the better match keeps it and the other is ``merged`` with it
-or coasts hidden (:meth:`Decider.yields`; the frame-level step is the tracker's).
+or coasts hidden (:meth:`Decider.yields`; the frame-level step is the tracker's); and a target
+whose measurement lies mostly inside another's with its colour not matching there
+(``colour_deny_rho``, :meth:`Decider.on_other`) yields to it the same way.
 """
 
 from __future__ import annotations
@@ -639,15 +641,19 @@ class Decider:
             stage="levelset",
         )
 
-    def yields(self, owner: int, box: BBox, prior: BBox) -> Decision:
+    def yields(
+        self, owner: int, box: BBox, prior: BBox, on_object: bool | None = None
+    ) -> Decision:
         """A target whose measurement ``box`` target ``owner`` took (a frame-level decision over
         both, :meth:`owner_of`); it learns nothing (``SHARED``). Where its own prediction
-        ``prior`` lies on that object too (IoU at least ``shared_iou``), the two are one blob:
-        it is ``merged`` and keeps to its own motion (its prediction is its measurement, so it
-        neither counts as missing nor follows the other's box, and leaves the blob with its own
-        velocity); else the measurement pulled it onto the other target and it coasts, partly
-        hidden."""
-        if prior.iou(box) >= self.cfg.shared_iou:
+        ``prior`` lies on that object too (``on_object``; by default IoU at least
+        ``shared_iou``), the two are one blob: it is ``merged`` and keeps to its own motion (its
+        prediction is its measurement, so it neither counts as missing nor follows the other's
+        box, and leaves the blob with its own velocity); else the measurement pulled it onto the
+        other target and it coasts, partly hidden."""
+        if on_object is None:
+            on_object = prior.iou(box) >= self.cfg.shared_iou
+        if on_object:
             return decision(
                 Case.SHARED,
                 Rule.SHARED,
@@ -666,6 +672,15 @@ class Decider:
         if a is None or b is None or self.cfg.shared_iou <= 0:
             return False
         return a.iou(b) >= self.cfg.shared_iou
+
+    def on_other(self, a: BBox, b: BBox, rho_a: float) -> bool:
+        """Whether the measurement ``a`` of a target whose colour matches ``rho_a`` there lies
+        on another target measured at ``b``: mostly inside it (``inside_fraction`` of its area)
+        with its colour under ``colour_deny_rho``."""
+        cfg = self.cfg
+        if cfg.colour_deny_rho <= 0 or math.isnan(rho_a) or rho_a >= cfg.colour_deny_rho:
+            return False
+        return a.intersect(b).area >= cfg.inside_fraction * a.area
 
     def owner_of(
         self,

@@ -49,6 +49,17 @@ def _reach(m: single.Measured) -> float:
     return float(((b.cx - p.cx) / max(w, 1.0)) ** 2 + ((b.cy - p.cy) / max(h, 1.0)) ** 2) ** 0.5
 
 
+def _measured_boxes(
+    alone: dict[int, tuple[single.Measured, list[Event]]], leave_out: set[int] | None = None
+) -> dict[int, BBox]:
+    """The measurements of the targets (but ``leave_out``) that have one."""
+    out = {}
+    for i, (m, _) in alone.items():
+        if m.decision.box is not None and i not in (leave_out or ()):
+            out[i] = m.decision.box
+    return out
+
+
 def mode_of(frames: FramePair) -> str:
     """``dual`` with both channels, else ``ir`` or ``visible``: the cues follow the channels
     present."""
@@ -294,7 +305,9 @@ class Dual:
         measurements land on one object (:meth:`Decider.shared`), one keeps it
         (:meth:`Decider.owner_of`) and the other learns nothing, merged with it or coasting
         hidden (:meth:`Decider.yields`). Pairs are settled from the most overlapping down; a
-        target that yielded takes part in no later pair."""
+        target that yielded takes part in no later pair. Then a target whose measurement lies
+        on another target and whose colour says it is not its own (:meth:`Decider.on_other`)
+        yields to that one, the worst colour match first."""
         out = dict(alone)
         yielded: set[int] = set()
         for i, j in self._shared_pairs(alone):
@@ -309,17 +322,47 @@ class Dual:
             )
             out[other] = (dataclasses.replace(m, decision=d), ev)
             yielded.add(other)
+        for i, j in self._inside_pairs(out, yielded):
+            if i not in yielded and j not in yielded:
+                out[i] = self._yield_inside(out[i], j, out[j][0])
+                yielded.add(i)
         return out
+
+    def _yield_inside(
+        self, mine: tuple[single.Measured, list[Event]], j: int, theirs: single.Measured
+    ) -> tuple[single.Measured, list[Event]]:
+        """A target whose measurement lies on target ``j`` yields to it: merged where its own
+        prediction lies on ``j`` too, else coasting."""
+        m, ev = mine
+        box, other = m.decision.box, theirs.decision.box
+        assert box is not None and other is not None
+        prior = m.evidence.prior
+        on = prior.intersect(other).area >= self.decider.cfg.inside_fraction * prior.area
+        d = self.decider.yields(j, box, prior, on)
+        return dataclasses.replace(m, decision=self.lifecycle.settle(d, m.evidence)), ev
+
+    def _inside_pairs(
+        self, alone: dict[int, tuple[single.Measured, list[Event]]], yielded: set[int]
+    ) -> list[tuple[int, int]]:
+        """``(i, j)``: target ``i``'s measurement lies on target ``j`` and its colour says it is
+        not ``i`` (:meth:`Decider.on_other`); the worst colour match first."""
+        if self.decider.cfg.colour_deny_rho <= 0:
+            return []
+        boxes = _measured_boxes(alone, yielded)
+        rho = {i: self._match(alone[i][0]) for i in boxes}
+        pairs = sorted(
+            (rho[i], i, j)
+            for i, a in boxes.items()
+            for j, b in boxes.items()
+            if i != j and self.decider.on_other(a, b, rho[i])
+        )
+        return [(i, j) for _, i, j in pairs]
 
     def _shared_pairs(
         self, alone: dict[int, tuple[single.Measured, list[Event]]]
     ) -> list[tuple[int, int]]:
         """The pairs of measured targets whose boxes are one object, most overlapping first."""
-        boxes = {
-            i: m.decision.box
-            for i, (m, _) in alone.items()
-            if m.decision.measured and m.decision.box is not None
-        }
+        boxes = _measured_boxes(alone)
         pairs = sorted(
             (
                 (a.iou(boxes[j]), i, j)
