@@ -349,6 +349,8 @@ class Dual:
         if self.decider.cfg.colour_deny_rho <= 0:
             return []
         boxes = _measured_boxes(alone, yielded)
+        if len(boxes) < 2:
+            return []
         rho = {i: self._match(alone[i][0]) for i in boxes}
         pairs = sorted(
             (rho[i], i, j)
