@@ -191,6 +191,14 @@ class DeciderConfig(Section):
     inside_fraction : float
         With ``colour_deny_rho``: the share of a measurement's area inside another target's
         that makes it lie on that target, in (0, 1]; default 0.6.
+    background_share : float
+        Where a still camera's IR background of the sequence is known, a filter detection whose
+        box differs from it in under this share of its pixels, and whose colour does not
+        confirm it (a match under ``colour_min_rho``, or no colour), is not confident: the box
+        has slid onto the background, in [0, 1]; default 0.05 (0: off). A target standing
+        still long enough to enter the background estimate is refused too when its colour is
+        not seen; raising it refuses targets that differ little from their background (a cold
+        target at night).
     occlusion_rho : float
         A colour match this strong carries a target whose IR has faded, in [0, 1]; default
         0.75.
@@ -245,6 +253,7 @@ class DeciderConfig(Section):
     colour_veto_margin: float = param(0.2, gt=0, le=1)
     colour_deny_rho: float = param(0.35, ge=0, le=1)
     inside_fraction: float = param(0.6, gt=0, le=1)
+    background_share: float = param(0.05, ge=0, le=1)
     occlusion_rho: float = param(0.75, ge=0, le=1)
     colour_trust_rho: float = param(0.85, ge=0, le=1)
     partial_area_ratio: float = param(0.6, gt=0, lt=1)
@@ -501,7 +510,7 @@ class DualConfig(Section):
             appearance=None,
             extent=None,
             redetect=None,
-            decider=DeciderConfig(colour_trust_rho=1.0, colour_deny_rho=0.0),
+            decider=DeciderConfig(colour_trust_rho=1.0, colour_deny_rho=0.0, background_share=0.0),
             groups=GroupConfig(
                 merge_position="eq11",
                 inside_blob=False,

@@ -309,6 +309,42 @@ def robust_level(a: np.ndarray) -> tuple[float, float]:
     return med, 1.4826 * float(np.median(np.abs(sub - med)))
 
 
+def foreground_share(
+    grey: np.ndarray,
+    bg: Background,
+    box: tuple[float, float, float, float],
+    k: float = 3.0,
+    min_contrast: float = 5.0,
+) -> float:
+    """The share of the pixels of ``box`` (x, y, w, h, frame px) that differ from the background
+    ``bg`` by more than ``k`` robust deviations of the difference around it (the box grown by its
+    size on every side) and by ``min_contrast`` grey levels, either sign; NaN for a box outside
+    the frame. A still camera's target differs from its background; a box that has slid onto
+    the background does not.
+
+    Examples
+    --------
+    >>> bg = Background(np.full((40, 40), 50.0, np.float32), frames=1)
+    >>> frame = np.full((40, 40), 50, np.uint8)
+    >>> frame[10:20, 10:20] = 90
+    >>> on, off = (10, 10, 10, 10), (25, 25, 10, 10)
+    >>> foreground_share(frame, bg, on), foreground_share(frame, bg, off)
+    (1.0, 0.0)
+    """
+    x, y, w, h = box
+    H, W = grey.shape[:2]
+    x0, y0 = max(int(x), 0), max(int(y), 0)
+    x1, y1 = min(int(np.ceil(x + w)), W), min(int(np.ceil(y + h)), H)
+    if x1 <= x0 or y1 <= y0:
+        return float("nan")
+    X0, Y0 = max(int(x - w), 0), max(int(y - h), 0)
+    X1, Y1 = min(int(np.ceil(x + 2 * w)), W), min(int(np.ceil(y + 2 * h)), H)
+    diff = grey[Y0:Y1, X0:X1].astype(np.float32) - bg.estimate[Y0:Y1, X0:X1]
+    level, dev = robust_level(diff)
+    inner = diff[y0 - Y0 : y1 - Y0, x0 - X0 : x1 - X0]
+    return float(np.mean(np.abs(inner - level) > max(k * dev, min_contrast)))
+
+
 def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float, float]:
     """The translation ``(dx, dy)`` (px) that carries ``ref`` onto ``img``, ``|dx|, |dy| <=
     max_px``.

@@ -381,3 +381,36 @@ def test_every_rule_of_the_tables_is_reached():
     ]
     reached = {decide(ev).rule for ev in cases}
     assert {r for r, _, _ in TRACKED + MISSING} <= reached
+
+
+BG = dataclasses.replace(CFG, background_share=0.05)
+
+
+def test_a_filter_box_on_the_background_is_not_confident_unless_the_colour_confirms_it():
+    """The filter alone (the contour failed) on a box that differs from the still background in
+    2 % of its pixels: without a colour match it coasts, partly seen; with one (a target that
+    stood still long enough to enter the background) it is taken."""
+    alone = dict(
+        contour_ok=False, contour_reason="no-component", contour_box=None, rho_meanshift=0.2
+    )
+    d = decide(evidence(**alone, foreground_share=0.02, rho_appearance=0.1), BG)
+    assert (d.case, d.status, d.rule) == (
+        Case.COAST,
+        TargetStatus.OCCLUDED_PARTIAL,
+        Rule.ON_BACKGROUND,
+    )
+    assert not d.learn and d.box is None and d.text == "coast:filter-on-background"
+    seen = decide(evidence(**alone, foreground_share=0.02, rho_appearance=0.9), BG)
+    assert seen.rule == Rule.APPEARANCE_CONTOUR_FAILED and seen.learn
+    on_target = decide(evidence(**alone, foreground_share=0.4, rho_appearance=0.1), BG)
+    assert on_target.rule == Rule.APPEARANCE_CONTOUR_FAILED
+    unknown = decide(evidence(**alone, foreground_share=NAN, rho_appearance=0.1), BG)
+    assert unknown.rule == Rule.APPEARANCE_CONTOUR_FAILED  # no still background: no test
+    off = dataclasses.replace(BG, background_share=0.0)
+    assert decide(evidence(**alone, foreground_share=0.0, rho_appearance=0.1), off).measured
+
+
+def test_a_hidden_target_is_not_taken_back_onto_the_background():
+    ev = missing(appearance_box=at(104), psr=12.0, rho_appearance=0.3, foreground_share=0.0)
+    assert decide(ev, BG).case == Case.COAST
+    assert decide(dataclasses.replace(ev, foreground_share=0.5), BG).case == Case.REACQUIRED

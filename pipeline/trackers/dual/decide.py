@@ -23,7 +23,10 @@ Tracked last frame (:data:`TRACKED`)
     5. ``COLOUR_CONTOUR_FAILED``: a strong colour match (colour carries it through IR clutter
        and crossover);
     6. ``COLOUR_IR_FADED``: a contour lost to low contrast and a good colour match;
-    then ``PARTIAL_EVIDENCE`` / ``NO_EVIDENCE``: a coast on the motion prior.
+    then ``PARTIAL_EVIDENCE`` / ``NO_EVIDENCE``: a coast on the motion prior, or
+    ``ON_BACKGROUND`` where the filter was confident on a box that differs from a still camera's
+    background in under ``background_share`` of its pixels with no colour to confirm it (the
+    box has slid off the target; its models stop learning and the re-detection search runs).
 
 Missing (hidden or lost; :data:`MISSING`)
     7. ``REDETECTED`` / ``APPEARANCE_NEAR_PREDICTION``: a filter detection at ``psr_reacquire``
@@ -102,6 +105,7 @@ class Rule(enum.StrEnum):
     COLOUR_NEAR_PREDICTION = "colour-near-prediction"
     PARTIAL_EVIDENCE = "partial-evidence"
     NO_EVIDENCE = "no-evidence"
+    ON_BACKGROUND = "filter-on-background"
     LEFT_THE_FRAME = "left-the-frame"
     MISSING_TOO_LONG = "{missing}-frames-without-a-measurement"
     SHARED = "measurement-taken-by-{reason}"
@@ -149,6 +153,7 @@ class Evidence:
     outside: bool = False  # the prediction has left the frame
     prior_std_px: tuple[float, float] = (0.0, 0.0)  # std. deviation of the predicted centre (x, y)
     contour_checked: bool = True  # the contour cue applies its failure tests (contour.checks)
+    foreground_share: float = float("nan")  # of the filter's box, against the still background
 
     @property
     def ref_area(self) -> float:
@@ -231,6 +236,15 @@ def _strong_colour(ev: Evidence, cfg: DeciderConfig) -> bool:
     return _good(ev.rho_meanshift, cfg.colour_trust_rho)
 
 
+def _on_background(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """The filter's box differs from the still camera's background in under
+    ``background_share`` of its pixels and its colour does not confirm it."""
+    if cfg.background_share <= 0 or math.isnan(ev.foreground_share):
+        return False
+    confirmed = ev.colour_informative and _good(ev.rho_appearance, cfg.colour_min_rho)
+    return ev.foreground_share < cfg.background_share and not confirmed
+
+
 def _colour_says_no(ev: Evidence, cfg: DeciderConfig) -> bool:
     """The colour at the contour contradicts it (under ``colour_min_rho``)."""
     return (
@@ -273,7 +287,9 @@ class View:
             can_learn=not appearance or _good(ev.psr, cfg.psr_update),
             contour_clean=clean,
             cut=clean and _cut(ev, cfg),
-            confident=appearance and _good(ev.psr, cfg.psr_confident),
+            confident=appearance
+            and _good(ev.psr, cfg.psr_confident)
+            and not _on_background(ev, cfg),
             strong_colour=_strong_colour(ev, cfg),
             colour_says_no=_colour_says_no(ev, cfg),
         )
@@ -380,6 +396,7 @@ class View:
         return (
             self.appearance
             and _good(ev.psr, cfg.psr_reacquire)
+            and not _on_background(ev, cfg)
             and (self.near_prior(ev.appearance_box) or (ev.redetected and colour_agrees))
         )
 
@@ -583,7 +600,11 @@ MISSING: tuple[RuleSpec, ...] = (
 
 def coast(v: View) -> Decision:
     """No rule applies: the target coasts on its motion prior, ``occluded-partial`` with some
-    evidence of it, ``occluded-severe`` without."""
+    evidence of it (``ON_BACKGROUND`` where that was a confident filter on the background),
+    ``occluded-severe`` without."""
+    ev = v.ev
+    if v.appearance and _good(ev.psr, v.cfg.psr_confident) and _on_background(ev, v.cfg):
+        return decision(Case.COAST, Rule.ON_BACKGROUND, status=TargetStatus.OCCLUDED_PARTIAL)
     if v.some_evidence:
         return decision(Case.COAST, Rule.PARTIAL_EVIDENCE, status=TargetStatus.OCCLUDED_PARTIAL)
     return decision(Case.COAST, Rule.NO_EVIDENCE, status=TargetStatus.OCCLUDED_SEVERE)

@@ -10,8 +10,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from pipeline.io.sequence import FramePair
+from pipeline.stages import detection
 from pipeline.stages.appearance import AppearanceModel, Detection
 from pipeline.stages.contour import ContourResult, LevelSetMemory
+from pipeline.stages.detection import to_grey
 from pipeline.stages.model_update import UpdateDecision
 from pipeline.trackers.dual.appearance import FilterCue
 from pipeline.trackers.dual.colour import ColourStep, add_time
@@ -67,6 +69,10 @@ def measure(
     rho_c = dual.colour.match_at(cs, usable.box if usable is not None else None)
     rho_a = dual.colour.match_at(cs, cue.box if cue is not None else None)
     ev = evidence(dual, frames, cs, cue, usable, c, (rho_c, rho_a), mode, start)
+    if cue is not None and dual.decider.cfg.background_share > 0:
+        ev = dataclasses.replace(
+            ev, foreground_share=_foreground_share(frames, cue.box, background)
+        )
     d = dual.lifecycle.settle(dual.decider.decide(ev), ev)
     if start is not None and not d.measured and c is not None and c.box is not None:
         d = dual.decider.split_blob(c.box)  # the blob a split re-associated it with
@@ -192,6 +198,18 @@ def evidence(
         contour_checked=dual.contour.cfg.checks,
         **_filter_evidence(cue),
     )
+
+
+def _foreground_share(frames: FramePair, box: BBox, background: BackgroundSource) -> float:
+    """The share of ``box`` that differs from the sequence's still IR background; NaN without an
+    IR frame (a visible target at dusk differs little from its background; the test was made
+    for heat), without a background or where it does not hold (a moving camera)."""
+    if frames.infrared is None:
+        return NAN
+    bg = background() if callable(background) else background
+    if bg is None or not bg.static or not bg.holds:
+        return NAN
+    return detection.foreground_share(to_grey(frames.infrared), bg, box.as_tuple())
 
 
 def _filter_evidence(cue: FilterCue | None) -> dict:
