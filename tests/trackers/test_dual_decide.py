@@ -414,3 +414,18 @@ def test_a_hidden_target_is_not_taken_back_onto_the_background():
     ev = missing(appearance_box=at(104), psr=12.0, rho_appearance=0.3, foreground_share=0.0)
     assert decide(ev, BG).case == Case.COAST
     assert decide(dataclasses.replace(ev, foreground_share=0.5), BG).case == Case.REACQUIRED
+
+
+def test_the_background_is_asked_only_where_nothing_else_confirms_the_filter():
+    from pipeline.trackers.dual.decide import needs_background
+
+    alone = dict(contour_ok=False, contour_reason="no-component", contour_box=None)
+    assert needs_background(evidence(**alone, rho_appearance=0.1), BG)
+    assert needs_background(evidence(**alone, colour_informative=False), BG)
+    assert not needs_background(evidence(**alone, rho_appearance=0.9), BG)  # colour confirms
+    assert not needs_background(evidence(rho_appearance=0.1), BG)  # a clean contour on it
+    assert needs_background(evidence(contour_box=at(111), rho_appearance=0.1), BG)  # aside
+    assert not needs_background(evidence(**alone, rho_appearance=0.1, psr=5.0), BG)
+    assert not needs_background(
+        evidence(**alone, rho_appearance=0.1), CFG.__class__(background_share=0.0)
+    )

@@ -68,6 +68,7 @@ __all__ = [
     "Rule",
     "View",
     "agree",
+    "needs_background",
 ]
 
 
@@ -234,6 +235,25 @@ def _strong_colour(ev: Evidence, cfg: DeciderConfig) -> bool:
     if not ev.colour_informative or ev.meanshift_box is None or cfg.colour_trust_rho >= 1:
         return False
     return _good(ev.rho_meanshift, cfg.colour_trust_rho)
+
+
+def needs_background(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """Whether the background test could refuse this frame's filter detection: a confident one
+    (``psr_confident``) that neither its colour (``colour_min_rho``) nor a checked contour where
+    it is (a contrasted IR blob there) confirms. Only then is the share of its box that differs
+    from the background computed (the sequence's background costs seconds on large frames)."""
+    if (
+        cfg.background_share <= 0
+        or ev.appearance_box is None
+        or not _good(ev.psr, cfg.psr_confident)
+    ):
+        return False
+    if ev.colour_informative and _good(ev.rho_appearance, cfg.colour_min_rho):
+        return False
+    on_contour = _clean(ev) and agree(
+        ev.contour_box, ev.appearance_box, ev.ref_size, cfg.agree_fraction
+    )
+    return not on_contour
 
 
 def _on_background(ev: Evidence, cfg: DeciderConfig) -> bool:

@@ -17,7 +17,7 @@ from pipeline.stages.detection import to_grey
 from pipeline.stages.model_update import UpdateDecision
 from pipeline.trackers.dual.appearance import FilterCue
 from pipeline.trackers.dual.colour import ColourStep, add_time
-from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule
+from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule, needs_background
 from pipeline.trackers.dual.state import BackgroundSource, DualTarget
 from pipeline.types import BBox, Event, EventKind, TargetResult
 
@@ -69,7 +69,7 @@ def measure(
     rho_c = dual.colour.match_at(cs, usable.box if usable is not None else None)
     rho_a = dual.colour.match_at(cs, cue.box if cue is not None else None)
     ev = evidence(dual, frames, cs, cue, usable, c, (rho_c, rho_a), mode, start)
-    if cue is not None and dual.decider.cfg.background_share > 0:
+    if cue is not None and needs_background(ev, dual.decider.cfg):
         ev = dataclasses.replace(
             ev, foreground_share=_foreground_share(frames, cue.box, background)
         )
