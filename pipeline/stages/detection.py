@@ -299,11 +299,11 @@ def _hann_window(h: int, w: int) -> np.ndarray:
     return cv2.createHanningWindow((w, h), cv2.CV_32F)
 
 
-def robust_level(a: np.ndarray) -> tuple[float, float]:
-    """(median, 1.4826 x median absolute deviation) of ``a`` over a regular grid of about 4 000
-    of its values, whatever its size: a level and a deviation that targets and edges covering
-    part of the frame do not move."""
-    step = max(1, int(np.sqrt(a.size / 4096)))
+def robust_level(a: np.ndarray, values: int = 4096) -> tuple[float, float]:
+    """(median, 1.4826 x median absolute deviation) of ``a`` over a regular grid of about
+    ``values`` of its values (4096 by default), whatever its size: a level and a deviation that
+    targets and edges covering part of the frame do not move."""
+    step = max(1, int(np.sqrt(a.size / values)))
     sub = a[::step, ::step].ravel()
     med = float(np.median(sub))
     return med, 1.4826 * float(np.median(np.abs(sub - med)))
@@ -340,10 +340,7 @@ def foreground_share(
     X0, Y0 = max(int(x - w), 0), max(int(y - h), 0)
     X1, Y1 = min(int(np.ceil(x + 2 * w)), W), min(int(np.ceil(y + 2 * h)), H)
     diff = grey[Y0:Y1, X0:X1].astype(np.float32) - bg.estimate[Y0:Y1, X0:X1]
-    step = max(1, int(np.ceil(np.sqrt(diff.size / 1024))))  # about a thousand values suffice
-    sub = diff[::step, ::step].ravel()
-    level = float(np.median(sub))
-    dev = 1.4826 * float(np.median(np.abs(sub - level)))
+    level, dev = robust_level(diff, values=1024)  # about a thousand values suffice
     inner = diff[y0 - Y0 : y1 - Y0, x0 - X0 : x1 - X0]
     return float(np.count_nonzero(np.abs(inner - level) > max(k * dev, min_contrast)) / inner.size)
 
