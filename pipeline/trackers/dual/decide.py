@@ -721,7 +721,11 @@ class Decider:
         cfg = self.cfg
         if cfg.colour_deny_rho <= 0 or math.isnan(rho_a) or rho_a >= cfg.colour_deny_rho:
             return False
-        return a.intersect(b).area >= cfg.inside_fraction * a.area
+        return self.lies_in(a, b)
+
+    def lies_in(self, a: BBox, b: BBox) -> bool:
+        """Whether box ``a`` lies mostly inside box ``b`` (``inside_fraction`` of its area)."""
+        return a.intersect(b).area >= self.cfg.inside_fraction * a.area
 
     def owner_of(
         self,

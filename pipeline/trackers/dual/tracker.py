@@ -314,31 +314,27 @@ class Dual:
             if i in yielded or j in yielded:
                 continue
             owner, other = self._settle(i, j, out[i][0], out[j][0])
-            m, ev = out[other]
-            box = m.decision.box
-            assert box is not None
-            d = self.lifecycle.settle(
-                self.decider.yields(owner, box, m.evidence.prior), m.evidence
-            )
-            out[other] = (dataclasses.replace(m, decision=d), ev)
+            out[other] = self._yield(out[other], owner)
             yielded.add(other)
         for i, j in self._inside_pairs(out, yielded):
             if i not in yielded and j not in yielded:
-                out[i] = self._yield_inside(out[i], j, out[j][0])
+                other_box = out[j][0].decision.box
+                assert other_box is not None
+                on = self.decider.lies_in(out[i][0].evidence.prior, other_box)
+                out[i] = self._yield(out[i], j, on)
                 yielded.add(i)
         return out
 
-    def _yield_inside(
-        self, mine: tuple[single.Measured, list[Event]], j: int, theirs: single.Measured
+    def _yield(
+        self, mine: tuple[single.Measured, list[Event]], owner: int, on: bool | None = None
     ) -> tuple[single.Measured, list[Event]]:
-        """A target whose measurement lies on target ``j`` yields to it: merged where its own
-        prediction lies on ``j`` too, else coasting."""
+        """A target whose measurement target ``owner`` takes: merged where its own prediction
+        lies on the object too (``on``; by default :meth:`Decider.yields` tests the overlap),
+        else coasting; it learns nothing."""
         m, ev = mine
-        box, other = m.decision.box, theirs.decision.box
-        assert box is not None and other is not None
-        prior = m.evidence.prior
-        on = prior.intersect(other).area >= self.decider.cfg.inside_fraction * prior.area
-        d = self.decider.yields(j, box, prior, on)
+        box = m.decision.box
+        assert box is not None
+        d = self.decider.yields(owner, box, m.evidence.prior, on)
         return dataclasses.replace(m, decision=self.lifecycle.settle(d, m.evidence)), ev
 
     def _inside_pairs(
