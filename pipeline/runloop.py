@@ -8,12 +8,9 @@ tracker or the detector, called once per frame pair on the calling thread) and i
 * the run folder: refused when it holds files unless ``force``, which deletes only the
   files the command writes; an OS problem (read-only, under a file) is one clear line;
 * the overlap of the work: a reader thread decodes frame pairs ahead into a bounded queue
-  (the decoders release the GIL) and the step runs on the calling thread. The sinks are fed
-  on the step's thread while the reader keeps ahead of it (frames wait in its queue: the
-  step is what limits the rate, and the sinks' Python work on a thread of its own would
-  only compete with it for the GIL), and on a writer thread while the step waits for
-  frames (large frames, whose decoding limits the rate: the writes then fill that wait).
-  The results are the same as one thread doing all three in turn (``threads=False``);
+  (OpenCV's decoders release the GIL), the step runs on the calling thread, and a writer
+  thread feeds the sinks, so decoding, tracking and writing proceed at the same time; the
+  results are the same as one thread doing all three in turn (``threads=False``);
 * checkpoints: every ``checkpoint_frames`` frames the sinks write what they hold in whole
   rows (``pipeline.sinks.rowfile``) and ``summary.json`` is replaced atomically with the
   number of frames on disk, so even after a SIGKILL the summary says how many frames the
@@ -220,10 +217,6 @@ class _Reader:
                 raise x
             yield x
 
-    def ahead(self) -> bool:
-        """Whether decoded frames are waiting for the step (the reader keeps ahead of it)."""
-        return self.threaded and not self._q.empty()
-
     def close(self) -> None:
         self._stop.set()
         if self.threaded:
@@ -231,10 +224,8 @@ class _Reader:
 
 
 class _Writer:
-    """Feeds the sinks in frame order, with a checkpoint every ``every`` frames: inline, or
-    (``threaded``) on its own thread for the frames that arrive while ``ahead()`` is false (the
-    reader has no frame waiting) and inline for the others, once what the thread holds is
-    written."""
+    """Feeds the sinks in frame order (on its own thread, or inline), with a checkpoint every
+    ``every`` frames."""
 
     def __init__(
         self,
@@ -243,7 +234,6 @@ class _Writer:
         on_checkpoint: Callable[[int], None],
         threaded: bool,
         depth: int = 32,
-        ahead: Callable[[], bool] = lambda: False,
     ):
         self.sinks, self.every, self.on_checkpoint, self.threaded = (
             sinks,
@@ -256,8 +246,6 @@ class _Writer:
         self.sinks_s = 0.0
         self.error: BaseException | None = None
         self._n = 0
-        self._ahead = ahead
-        self._sent = self._done = 0  # handed to the thread / written by it (one writer each)
         if threaded:
             self._q: queue.Queue = queue.Queue(maxsize=depth)
             self._t = threading.Thread(target=self._run, name="dualtrack-writer", daemon=True)
@@ -292,19 +280,18 @@ class _Writer:
             x = self._q.get()
             if x is _END:
                 return
-            if self.error is None:  # else drain: a sink failed, the rest is not written
-                try:
-                    self._write(*x)
-                except BaseException as exc:
-                    self.error = exc
-            self._done += 1
+            if self.error is not None:
+                continue  # drain: a sink failed, the rest of the frames are not written
+            try:
+                self._write(*x)
+            except BaseException as exc:
+                self.error = exc
 
     def put(self, frames: FramePair, item: object) -> None:
         if self.error is not None:
             raise self.error
         self.queued += 1
-        if self.threaded and (self._sent > self._done or not self._ahead()):
-            self._sent += 1
+        if self.threaded:
             self._q.put((frames, item))
         else:
             try:
@@ -397,14 +384,10 @@ def run_job(job: Job) -> LoopResult:
     # until summary.json is final: SIGINT/SIGTERM stop between frames, then only count
     with _Signals() as sig:
         sinks = job.make_sinks()
-        reader = _Reader(job.seq, job.stop_frame, job.threads)
         writer = _Writer(
-            sinks,
-            job.checkpoint_frames,
-            lambda n: write_summary({"frames": n}),
-            job.threads,
-            ahead=reader.ahead,
+            sinks, job.checkpoint_frames, lambda n: write_summary({"frames": n}), job.threads
         )
+        reader = _Reader(job.seq, job.stop_frame, job.threads)
         done = 0
         with _timer(stats):
             try:
