@@ -58,6 +58,11 @@ class MotionConfig(Section):
     onset_frames : int
         The newest measurements left out of that fit (an occluder may have been cutting them
         already), in [0, 10]; default 4.
+    rewind_tolerance : float
+        The rewind is refused when one of those left-out measurements lies farther from the
+        line than this share of the target's size on either axis (the target turned or
+        stopped: the line is the motion it had before), >= 0; default 0.5. An occluder that
+        cuts a target shifts its centre by under half its size; 0 rewinds always.
     """
 
     section = "motion"
@@ -66,6 +71,7 @@ class MotionConfig(Section):
     history_frames: int = param(16, ge=2, le=100)
     rewind_frames: int = param(8, ge=0, le=30)
     onset_frames: int = param(4, ge=0, le=10)
+    rewind_tolerance: float = param(0.5, ge=0)
 
 
 @dataclass(frozen=True)
@@ -173,6 +179,12 @@ class DeciderConfig(Section):
         (its first frames, or after it was found again) may move by more than a share of its
         size: a 10 px wide person walking 8 px a frame; once its motion is known the
         prediction's deviation shrinks to a few px and the reach to about ``jump_fraction``.
+    jump_speed : float
+        Around the last box, that reach grows by this many times the target's recent speed (px
+        a frame over its clean measurements), >= 0; default 1. A target that turns or stops
+        ends up to one frame's travel from where it was, which the prediction (ahead by that
+        much) does not cover once its deviation has shrunk; 0 keeps the reach at
+        ``jump_fraction`` of the size.
     colour_min_rho : float
         A colour match under this contradicts a measurement at that place, in [0, 1];
         default 0.6.
@@ -238,6 +250,21 @@ class DeciderConfig(Section):
         matches its own box there more closely by at least this (Bhattacharyya coefficient);
         closer than that, or without colour, the one whose prediction lies nearer (in its own
         sizes), in [0, 1]; default 0.05.
+    turn_search : bool
+        Where the filter is not confident at the prediction (under ``psr_confident``), it
+        also looks where a stop or a reversal would have taken the target: at its last clean
+        measurement and as far behind it as the prediction is ahead (:meth:`Decider.turns`);
+        default True. Costs two detections on such frames.
+    reach_missing : bool
+        A missing target is also taken back by a filter detection at ``psr_reacquire`` where
+        it can have got to since its last clean measurement (``jump_fraction`` of its size plus
+        ``jump_speed`` times its recent speed per frame since, around that measurement) and
+        the colour does not say it is elsewhere (from the re-detection search, which tries many
+        places, only with a colour match of ``colour_deny_rho``; :meth:`View.reached`);
+        default True. Without
+        it, only near the prediction (``reacquire_gate_px_per_frame``) or found by the
+        re-detection search with a colour match of ``reacquire_rho``: a target that turned
+        while coasting is seen and refused.
     """
 
     section = "decider"
@@ -249,6 +276,7 @@ class DeciderConfig(Section):
     agree_fraction: float = param(0.35, gt=0, le=2)
     jump_fraction: float = param(0.75, gt=0, le=5)
     jump_sigma: float = param(3.0, ge=0)
+    jump_speed: float = param(1.0, ge=0)
     colour_min_rho: float = param(0.6, ge=0, le=1)
     colour_veto_margin: float = param(0.2, gt=0, le=1)
     colour_deny_rho: float = param(0.35, ge=0, le=1)
@@ -264,6 +292,8 @@ class DeciderConfig(Section):
     noise_scale_colour: float = param(2.0, gt=0)
     shared_iou: float = param(0.0, ge=0, le=1)
     shared_colour_margin: float = param(0.05, ge=0, le=1)
+    turn_search: bool = True
+    reach_missing: bool = True
 
 
 @dataclass(frozen=True)
@@ -498,7 +528,7 @@ class DualConfig(Section):
         (True, 'eq11', 'last-position')
         """
         return cls(
-            motion=MotionConfig(search_from="last-position"),
+            motion=MotionConfig(search_from="last-position", rewind_tolerance=0.0),
             colour=ColourConfig(dark_gating=False),
             contour=ContourConfig(
                 checks=False,
@@ -510,7 +540,9 @@ class DualConfig(Section):
             appearance=None,
             extent=None,
             redetect=None,
-            decider=DeciderConfig(colour_trust_rho=1.0, colour_deny_rho=0.0, background_share=0.0),
+            decider=DeciderConfig(
+                colour_trust_rho=1.0, colour_deny_rho=0.0, background_share=0.0, jump_speed=0.0
+            ),
             groups=GroupConfig(
                 merge_position="eq11",
                 inside_blob=False,

@@ -8,6 +8,7 @@ estimate of where it is heading: the slope's standard error falls as ``n^-1.5``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,18 +90,39 @@ def coast_start(
     frame: int,
     max_age_frames: int,
     drop_newest: int = 0,
+    tolerance: float = math.inf,
 ) -> kalman.GaussianState | None:
     """State to coast from when an occlusion starts: position, velocity and size from a straight
     line through the recent clean measurements ``(frame, cx, cy, w, h)``, leaving out the
     ``drop_newest`` newest (an occluder often cuts the target before the cut is detected). None
     when fewer than 4 remain, the newest is older than ``max_age_frames``, or ``max_age_frames`` is
-    0."""
+    0, and also when a left-out measurement lies farther from the line than ``tolerance`` times
+    the size on either axis (the target turned: the line is the motion it had before).
+
+    Examples
+    --------
+    >>> from pipeline.stages import kalman
+    >>> prior = kalman.GaussianState(np.zeros(8), np.eye(8))
+    >>> walk = [(f, 10.0 * f, 50.0, 10.0, 20.0) for f in range(1, 9)]
+    >>> coast_start(walk, prior, 9, 8, 2).x[:6].round(1).tolist()  # straight on: rewound
+    [90.0, 50.0, 10.0, 20.0, 10.0, 0.0]
+    >>> back = walk[:6] + [(7, 50.0, 50.0, 10.0, 20.0), (8, 40.0, 50.0, 10.0, 20.0)]
+    >>> coast_start(back, prior, 9, 8, 2, tolerance=0.5) is None  # turned back: not rewound
+    True
+    """
     hist = np.asarray(history, float).reshape(-1, 5)
-    if drop_newest and hist.shape[0] - drop_newest >= 4:
-        hist = hist[:-drop_newest]
+    keep = hist.shape[0] - drop_newest if hist.shape[0] - drop_newest >= 4 else hist.shape[0]
+    hist, left_out = hist[:keep], hist[keep:]
     if max_age_frames == 0 or hist.shape[0] < 4 or frame - hist[-1, 0] > max_age_frames:
         return None
     fit = fit_linear_motion(hist, frame)
+    for f, cx, cy, _w, _h in left_out:
+        dt = f - frame
+        if (
+            abs(cx - (fit.cx + fit.vx * dt)) > tolerance * fit.w
+            or abs(cy - (fit.cy + fit.vy * dt)) > tolerance * fit.h
+        ):
+            return None
     x = np.zeros_like(prior.x)
     x[:6] = (fit.cx, fit.cy, fit.w, fit.h, fit.vx, fit.vy)
     return kalman.GaussianState(x, prior.P)

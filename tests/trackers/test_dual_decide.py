@@ -253,6 +253,46 @@ def test_redetection_far_away_needs_the_colour_to_agree():
     )  # not searched
 
 
+def test_a_hidden_target_is_taken_back_where_its_speed_can_have_carried_it():
+    """Last seen at x = 60, 3 frames ago, moving 10 px a frame: a confident detection at x = 85
+    (15 px + 30 px of reach) is taken back though the prediction (x = 100) is 15 px off and the
+    colour says little; at 3 px a frame, without ``reach_missing`` or from the re-detection
+    search with a colour unlike the target's, it is not."""
+    seen = dict(seen=(60.0, 100.0), seen_frames=3, speed_px=10.0)
+    ev = missing(3, appearance_box=at(85), psr=12.0, rho_appearance=0.5, **seen)
+    d = decide(ev)
+    assert (d.case, d.rule, d.box) == (Case.REACQUIRED, Rule.APPEARANCE_NEAR_PREDICTION, at(85))
+    assert decide(dataclasses.replace(ev, speed_px=3.0)).case == Case.COAST
+    assert decide(ev, DeciderConfig(reach_missing=False)).case == Case.COAST
+    assert decide(dataclasses.replace(ev, redetected=True)).rule == Rule.REDETECTED
+    low = dataclasses.replace(ev, redetected=True, rho_appearance=0.2)
+    assert decide(low).case == Case.COAST
+    # a better colour match elsewhere vetoes it, as for a tracked target
+    veto = dataclasses.replace(ev, rho_appearance=0.3, meanshift_box=at(140), rho_meanshift=0.8)
+    assert decide(veto).case == Case.COAST
+
+
+def test_the_reach_around_the_last_box_grows_with_the_targets_speed():
+    """A tracked target 12 px wide moving 10 px a frame turns back: its filter detection 10 px
+    behind its last box (and 20 px behind a prediction sure to 1 px) is within reach at
+    ``jump_speed`` 1, not at 0."""
+    size = (12.0, 30.0)
+    ev = evidence(
+        ref_size=size,
+        prior=at(120, w=12, h=30),
+        prior_std_px=(1.0, 1.0),
+        last=at(110, w=12, h=30),
+        appearance_box=at(100, w=12, h=30),
+        contour_box=None,
+        contour_ok=False,
+        contour_reason="no-component",
+        meanshift_box=at(100, w=12, h=30),
+        speed_px=10.0,
+    )
+    assert decide(ev).rule == Rule.APPEARANCE_CONTOUR_FAILED
+    assert decide(ev, DeciderConfig(jump_speed=0.0)).case == Case.COAST
+
+
 def test_a_contour_near_the_prediction_takes_it_back_when_the_colour_agrees():
     d = decide(missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.8))
     assert (d.case, d.rule, d.stage) == (Case.REACQUIRED, Rule.CONTOUR_NEAR_PREDICTION, "levelset")

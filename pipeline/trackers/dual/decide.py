@@ -30,8 +30,9 @@ Tracked last frame (:data:`TRACKED`)
 
 Missing (hidden or lost; :data:`MISSING`)
     7. ``REDETECTED`` / ``APPEARANCE_NEAR_PREDICTION``: a filter detection at ``psr_reacquire``
-       near the prediction, or found farther by the re-detection search with a colour match
-       (where colour is seen) at ``reacquire_rho``;
+       near the prediction, or where the target's speed can have carried it since it was last
+       seen (``reach_missing``), or found farther by the re-detection search with a colour
+       match (where colour is seen) at ``reacquire_rho``;
     8. ``CONTOUR_NEAR_PREDICTION``: a clean contour near the prediction whose colour agrees (or
        no colour to ask);
     9. ``COLOUR_NEAR_PREDICTION``: a colour match at ``reacquire_rho`` near the prediction;
@@ -155,6 +156,9 @@ class Evidence:
     prior_std_px: tuple[float, float] = (0.0, 0.0)  # std. deviation of the predicted centre (x, y)
     contour_checked: bool = True  # the contour cue applies its failure tests (contour.checks)
     foreground_share: float = float("nan")  # of the filter's box, against the still background
+    speed_px: float = 0.0  # its recent speed over its clean measurements, px per frame
+    seen: tuple[float, float] | None = None  # centre of its last clean measurement
+    seen_frames: int = 0  # frames since that measurement
 
     @property
     def ref_area(self) -> float:
@@ -351,8 +355,9 @@ class View:
         )
 
     def within_reach(self, box: BBox) -> bool:
-        """Within ``jump_fraction`` of the target's size (on each axis) of its last box, or of
-        its prediction with ``jump_sigma`` standard deviations of the predicted centre added."""
+        """Within ``jump_fraction`` of the target's size (on each axis) of its last box, with
+        ``jump_speed`` times its recent speed added (a turn or a stop), or of its prediction
+        with ``jump_sigma`` standard deviations of the predicted centre added."""
         ev, cfg = self.ev, self.cfg
         k = cfg.jump_sigma
 
@@ -362,7 +367,9 @@ class View:
                 and abs(box.cy - ref.cy) <= cfg.jump_fraction * ev.ref_size[1] + sy
             )
 
-        return near(ev.prior, k * ev.prior_std_px[0], k * ev.prior_std_px[1]) or near(ev.last)
+        s = cfg.jump_speed * ev.speed_px
+        sx, sy = k * ev.prior_std_px[0], k * ev.prior_std_px[1]
+        return near(ev.prior, sx, sy) or near(ev.last, s, s)
 
     def near_prior(self, box: BBox | None) -> bool:
         """``box`` exists and lies near the prediction (:meth:`Decider.near_prediction`)."""
@@ -417,7 +424,30 @@ class View:
             self.appearance
             and _good(ev.psr, cfg.psr_reacquire)
             and not _on_background(ev, cfg)
-            and (self.near_prior(ev.appearance_box) or (ev.redetected and colour_agrees))
+            and (
+                self.near_prior(ev.appearance_box)
+                or (ev.redetected and colour_agrees)
+                or self.reached(ev.appearance_box)
+            )
+        )
+
+    def reached(self, box: BBox | None) -> bool:
+        """``box`` lies where the target can have got to since its last clean measurement:
+        within ``jump_fraction`` of its size plus ``jump_speed`` times its recent speed for
+        every frame since (``reach_missing``), and the colour does not say it is elsewhere;
+        found by the re-detection search (many places tried), its colour must also match at
+        ``colour_deny_rho``."""
+        ev, cfg = self.ev, self.cfg
+        if not cfg.reach_missing or box is None or ev.seen is None:
+            return False
+        r = cfg.jump_speed * ev.speed_px * ev.seen_frames
+        return (
+            abs(box.cx - ev.seen[0]) <= cfg.jump_fraction * ev.ref_size[0] + r
+            and abs(box.cy - ev.seen[1]) <= cfg.jump_fraction * ev.ref_size[1] + r
+            and not self.colour_elsewhere(box, ev.rho_appearance)
+            and not (
+                ev.redetected and ev.colour_informative and ev.rho_appearance < cfg.colour_deny_rho
+            )
         )
 
     @property
@@ -800,6 +830,42 @@ class Decider:
                 or abs(found[1] - expected[1]) > cfg.agree_fraction * size[1]
             )
         )
+
+    def turns(
+        self,
+        psr: float,
+        seen: tuple[float, float] | None,
+        predicted: tuple[float, float],
+        tried: tuple[float, float],
+        size: tuple[float, float],
+    ) -> list[tuple[float, float]]:
+        """Where else the filter looks when it is not confident (under ``psr_confident``) at
+        ``tried``: where a stop leaves the target (``seen``, its last clean measurement) and
+        where a reversal takes it (as far behind ``seen`` as ``predicted`` is ahead of it),
+        each only where it differs from the places already tried by more than
+        ``agree_fraction`` of the size (``turn_search``).
+
+        Examples
+        --------
+        >>> from pipeline.tracker_config import DeciderConfig
+        >>> Decider(DeciderConfig()).turns(3.0, (50.0, 50.0), (60.0, 50.0), (60.0, 50.0), (10, 20))
+        [(50.0, 50.0), (40.0, 50.0)]
+        >>> Decider(DeciderConfig()).turns(8.0, (50.0, 50.0), (60.0, 50.0), (60.0, 50.0), (10, 20))
+        []
+        """
+        cfg = self.cfg
+        if not cfg.turn_search or seen is None or psr >= cfg.psr_confident:
+            return []
+        back = (2.0 * seen[0] - predicted[0], 2.0 * seen[1] - predicted[1])
+        out: list[tuple[float, float]] = []
+        for c in (seen, back):
+            if all(
+                abs(c[0] - q[0]) > cfg.agree_fraction * size[0]
+                or abs(c[1] - q[1]) > cfg.agree_fraction * size[1]
+                for q in (tried, *out)
+            ):
+                out.append(c)
+        return out
 
     def takes_back(
         self,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from pipeline.stages import kalman
@@ -103,7 +104,12 @@ class Motion:
         if t.missing == 0:  # an occlusion starts: coast from the recent clean measurements
             cfg = self.cfg
             restart = coast_start(
-                t.history, prior, frame, cfg.rewind_frames + cfg.onset_frames, cfg.onset_frames
+                t.history,
+                prior,
+                frame,
+                cfg.rewind_frames + cfg.onset_frames,
+                cfg.onset_frames,
+                cfg.rewind_tolerance or math.inf,
             )
             if restart is not None:
                 kf = restart

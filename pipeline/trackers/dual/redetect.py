@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -54,6 +55,26 @@ def recent_speed(t: DualTarget) -> float:
         return 0.0
     a, b = t.history[0], t.history[-1]
     return math.hypot(b[1] - a[1], b[2] - a[2]) / max(b[0] - a[0], 1.0)
+
+
+def step_speed(history: tuple, steps: int = 4) -> float | None:
+    """The mean distance between consecutive clean measurements ``(frame, cx, cy, w, h)`` over
+    the last ``steps`` of them, px per frame (None with fewer than two): how far a target moves
+    in a frame, whichever way (a target walking to and fro has a small :func:`recent_speed` and
+    a large step speed).
+
+    Examples
+    --------
+    >>> step_speed(((1, 10.0, 0, 5, 5), (2, 20.0, 0, 5, 5), (4, 0.0, 0, 5, 5)))
+    10.0
+    >>> step_speed(((1, 10.0, 0, 5, 5),)) is None
+    True
+    """
+    h = history[-(steps + 1) :]
+    if len(h) < 2:
+        return None
+    path = sum(math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in itertools.pairwise(h))
+    return path / max(h[-1][0] - h[0][0], 1.0)
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from pipeline.stages.model_update import UpdateDecision
 from pipeline.trackers.dual.appearance import FilterCue
 from pipeline.trackers.dual.colour import ColourStep, add_time
 from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule, needs_background
+from pipeline.trackers.dual.redetect import step_speed
 from pipeline.trackers.dual.state import BackgroundSource, DualTarget
 from pipeline.types import BBox, Event, EventKind, TargetResult
 
@@ -99,6 +100,12 @@ def _filter(
     best = a.detect(t.appearance, frames, mode, cs.y0, size, with_scale=False)
     if dual.decider.colour_moved(cs.informative, cs.rho1, cs.y1, cs.y0, size, best.psr):
         d = a.detect(t.appearance, frames, mode, cs.y1, size, with_scale=False)
+        if d.psr > best.psr:
+            best = d
+    predicted = (float(cs.prior.x[0]), float(cs.prior.x[1]))
+    seen = _seen(t, frames.index)["seen"]
+    for c in dual.decider.turns(best.psr, seen, predicted, cs.y0, size):
+        d = a.detect(t.appearance, frames, mode, c, size, with_scale=False)
         if d.psr > best.psr:
             best = d
     best, redetected = _redetect(dual, frames, cs, mode, best, background)
@@ -196,8 +203,18 @@ def evidence(
         outside=outside(prior.box, frames.shape),
         prior_std_px=(math.sqrt(float(prior.P[0, 0])), math.sqrt(float(prior.P[1, 1]))),
         contour_checked=dual.contour.cfg.checks,
+        speed_px=t.speed,
+        **_seen(t, frames.index),
         **_filter_evidence(cue),
     )
+
+
+def _seen(t: DualTarget, frame: int) -> dict:
+    """The evidence's fields of the target's last clean measurement: its centre and age."""
+    if not t.history:
+        return {"seen": None, "seen_frames": 0}
+    last = t.history[-1]
+    return {"seen": (last[1], last[2]), "seen_frames": int(frame - last[0])}
 
 
 def _foreground_share(frames: FramePair, box: BBox, background: BackgroundSource) -> float:
@@ -269,6 +286,7 @@ def update(
         split_frame=frames.index if m.start is not None else t.split_frame,
         appearance=model,
         case=d.case.value,
+        speed=step_speed(history) if len(history) >= 2 else t.speed,
     )
     return nt, result(dual, m, d, out, nt.missing, colour, rho2), events
 

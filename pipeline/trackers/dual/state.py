@@ -35,7 +35,8 @@ class DualTarget:
     what its clean contour says once it is inside); ``history`` the recent clean
     measurements; ``last_update`` the colour model's last update decision; ``split_frame``
     the frame of its last split from a group (re-merge hysteresis); ``case`` its last
-    decision's case.
+    decision's case; ``speed`` how far it moved a frame over its last clean measurements, px
+    (kept while its history is too short to tell: after it was found again).
     """
 
     id: int
@@ -54,6 +55,7 @@ class DualTarget:
     app_size: tuple[float, float] = (0.0, 0.0)
     entering: tuple[bool, bool] = (False, False)
     case: str = "init"
+    speed: float = 0.0
 
     @property
     def reference_size(self) -> tuple[float, float]:
