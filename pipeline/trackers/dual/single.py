@@ -89,7 +89,8 @@ def _filter(
     background: BackgroundSource,
 ) -> FilterCue | None:
     """The filter's detection at the prediction (and at the colour's position when that is
-    elsewhere: a turn); a missing target is also looked for by the re-detector."""
+    elsewhere: a turn; and, unsure there, where a stop or a reversal would have taken the
+    target: :meth:`Decider.turns`); a missing target is also looked for by the re-detector."""
     t, a = cs.t, dual.appearance
     if a is None or t.appearance is None:
         return None
