@@ -121,8 +121,9 @@ class RedetectConfig(Section):
     last_seen : bool
         The widening search region lies around the hidden target's last clean measurement as
         well as around its prediction (the candidates shared between the two), and widens at
-        the target's recent speed where that exceeds ``radius_px_per_frame``, so that a target
-        that turned or stopped while hidden is found where it was; default True.
+        the target's speed (the larger of its net displacement a frame and its mean step, which
+        a target walking to and fro keeps high) where that exceeds ``radius_px_per_frame``, so
+        that a target that turned or stopped while hidden is found where it was; default True.
     global_after_frames : int
         Missing frames after which the whole frame is searched, >= 1; default 12.
     every_frames : int

@@ -165,7 +165,7 @@ def test_a_target_walking_to_and_fro_is_followed_through_its_turns(tmp_path):
         ]
         p20[name] = float(np.mean(np.array(err) <= 20))
         coast[name] = sum(r["decision"].startswith(("coast", "lost")) for r in table)
-    assert p20["all"] >= 0.9 and coast["all"] <= 20, (p20, coast)
+    assert p20["all"] >= 0.9 and coast["all"] <= 25, (p20, coast)
     assert all(p20[k] <= 0.7 for k in variants if k != "all"), p20
 
 

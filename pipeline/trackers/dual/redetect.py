@@ -125,7 +125,8 @@ class Redetector:
         t, cfg = cs.t, self.cfg
         H, W = frames.shape
         turn = t.missing // cfg.every_frames
-        rate = max(cfg.radius_px_per_frame, recent_speed(t) if cfg.last_seen else 0.0)
+        speed = max(recent_speed(t), t.speed) if cfg.last_seen else 0.0
+        rate = max(cfg.radius_px_per_frame, speed)
         radius = 0.5 * math.hypot(*size) + rate * t.missing
         centres = [cs.y0]
         seen = self.last_seen(t)
