@@ -268,43 +268,11 @@ def test_strong_colour_carries_a_target_whose_contour_fails(scene, tmp_path):
     coasting on the prediction, as long as the coast is not restarted on the line of the frames
     before a turn (``motion.rewind_tolerance``); coasting on that line loses it."""
     d = scene("fast", seed=1)
-    trusted = run_track(
-        d,
-        RunOptions(
-            tracker="dual",
-            out_dir=tmp_path / "a",
-            rrd=False,
-            plots=False,
-            sets=["dual.appearance=none"],
-        ),
-    )
-    coasting = run_track(
-        d,
-        RunOptions(
-            tracker="dual",
-            out_dir=tmp_path / "b",
-            rrd=False,
-            plots=False,
-            sets=["dual.appearance=none", "dual.decider.colour_trust_rho=1"],
-        ),
-    )
-    rewound = run_track(
-        d,
-        RunOptions(
-            tracker="dual",
-            out_dir=tmp_path / "c",
-            rrd=False,
-            plots=False,
-            sets=[
-                "dual.appearance=none",
-                "dual.decider.colour_trust_rho=1",
-                "dual.motion.rewind_tolerance=0",
-            ],
-        ),
-    )
-    assert trusted.summary["metrics"]["p20"] >= 0.95
-    assert coasting.summary["metrics"]["p20"] >= 0.95  # the coast does not rewind past a turn
-    assert rewound.summary["metrics"]["p20"] < 0.7
+    alone = ["dual.appearance=none"]
+    coast = [*alone, "dual.decider.colour_trust_rho=1"]
+    assert _p20(d, tmp_path / "a", alone) >= 0.95
+    assert _p20(d, tmp_path / "b", coast) >= 0.95  # the coast does not rewind past a turn
+    assert _p20(d, tmp_path / "c", [*coast, "dual.motion.rewind_tolerance=0"]) < 0.7
     table = list(csv.DictReader((tmp_path / "a" / "targets.csv").read_text().splitlines()))
     assert any(r["source"] == "meanshift" and r["status"] == "tracking" for r in table)
 

@@ -210,7 +210,21 @@ def decision(
 
 def agree(a: BBox, b: BBox, size: tuple[float, float], fraction: float) -> bool:
     """Centres of ``a`` and ``b`` within ``fraction`` of ``size`` on each axis."""
-    return abs(a.cx - b.cx) <= fraction * size[0] and abs(a.cy - b.cy) <= fraction * size[1]
+    return _close(a.center, b.center, size, fraction)
+
+
+def _close(
+    c: tuple[float, float],
+    ref: tuple[float, float],
+    size: tuple[float, float],
+    fraction: float,
+    extra: tuple[float, float] = (0.0, 0.0),
+) -> bool:
+    """Point ``c`` within ``fraction`` of ``size`` plus ``extra`` px of ``ref`` on each axis."""
+    return (
+        abs(c[0] - ref[0]) <= fraction * size[0] + extra[0]
+        and abs(c[1] - ref[1]) <= fraction * size[1] + extra[1]
+    )
 
 
 def _good(x: float, threshold: float) -> bool:
@@ -359,17 +373,16 @@ class View:
         ``jump_speed`` times its recent speed added (a turn or a stop), or of its prediction
         with ``jump_sigma`` standard deviations of the predicted centre added."""
         ev, cfg = self.ev, self.cfg
-        k = cfg.jump_sigma
 
-        def near(ref: BBox | None, sx: float = 0.0, sy: float = 0.0) -> bool:
-            return ref is not None and (
-                abs(box.cx - ref.cx) <= cfg.jump_fraction * ev.ref_size[0] + sx
-                and abs(box.cy - ref.cy) <= cfg.jump_fraction * ev.ref_size[1] + sy
+        def near(ref: BBox | None, extra: tuple[float, float]) -> bool:
+            return ref is not None and _close(
+                box.center, ref.center, ev.ref_size, cfg.jump_fraction, extra
             )
 
-        s = cfg.jump_speed * ev.speed_px
-        sx, sy = k * ev.prior_std_px[0], k * ev.prior_std_px[1]
-        return near(ev.prior, sx, sy) or near(ev.last, s, s)
+        k, s = cfg.jump_sigma, cfg.jump_speed * ev.speed_px
+        return near(ev.prior, (k * ev.prior_std_px[0], k * ev.prior_std_px[1])) or near(
+            ev.last, (s, s)
+        )
 
     def near_prior(self, box: BBox | None) -> bool:
         """``box`` exists and lies near the prediction (:meth:`Decider.near_prediction`)."""
@@ -442,8 +455,7 @@ class View:
             return False
         r = cfg.jump_speed * ev.speed_px * ev.seen_frames
         return (
-            abs(box.cx - ev.seen[0]) <= cfg.jump_fraction * ev.ref_size[0] + r
-            and abs(box.cy - ev.seen[1]) <= cfg.jump_fraction * ev.ref_size[1] + r
+            _close(box.center, ev.seen, ev.ref_size, cfg.jump_fraction, (r, r))
             and not self.colour_elsewhere(box, ev.rho_appearance)
             and not (
                 ev.redetected and ev.colour_informative and ev.rho_appearance < cfg.colour_deny_rho
@@ -486,10 +498,7 @@ def near_prediction(
     """``center`` within half of ``ref_size`` of ``predicted``, plus
     ``reacquire_gate_px_per_frame`` per ``missing`` frame."""
     extra = cfg.reacquire_gate_px_per_frame * missing
-    return (
-        abs(center[0] - predicted[0]) <= 0.5 * ref_size[0] + extra
-        and abs(center[1] - predicted[1]) <= 0.5 * ref_size[1] + extra
-    )
+    return _close(center, predicted, ref_size, 0.5, (extra, extra))
 
 
 # ------------------------------------------------------------------------------ the rules
@@ -825,10 +834,7 @@ class Decider:
             informative
             and rho >= cfg.colour_min_rho
             and psr < cfg.psr_reacquire
-            and (
-                abs(found[0] - expected[0]) > cfg.agree_fraction * size[0]
-                or abs(found[1] - expected[1]) > cfg.agree_fraction * size[1]
-            )
+            and not _close(found, expected, size, cfg.agree_fraction)
         )
 
     def turns(
@@ -859,11 +865,7 @@ class Decider:
         back = (2.0 * seen[0] - predicted[0], 2.0 * seen[1] - predicted[1])
         out: list[tuple[float, float]] = []
         for c in (seen, back):
-            if all(
-                abs(c[0] - q[0]) > cfg.agree_fraction * size[0]
-                or abs(c[1] - q[1]) > cfg.agree_fraction * size[1]
-                for q in (tried, *out)
-            ):
+            if not any(_close(c, q, size, cfg.agree_fraction) for q in (tried, *out)):
                 out.append(c)
         return out
 

@@ -11,7 +11,7 @@ from pipeline.io.sequence import FramePair
 from pipeline.stages import detection
 from pipeline.tracker_config import RedetectConfig
 from pipeline.trackers.dual.colour import ColourStep
-from pipeline.trackers.dual.state import BackgroundSource, DualTarget
+from pipeline.trackers.dual.state import BackgroundSource, DualTarget, History
 
 
 def region_candidates(
@@ -57,7 +57,7 @@ def recent_speed(t: DualTarget) -> float:
     return math.hypot(b[1] - a[1], b[2] - a[2]) / max(b[0] - a[0], 1.0)
 
 
-def step_speed(history: tuple, steps: int = 4) -> float | None:
+def step_speed(history: History, steps: int = 4) -> float | None:
     """The mean distance between consecutive clean measurements ``(frame, cx, cy, w, h)`` over
     the last ``steps`` of them, px per frame (None with fewer than two): how far a target moves
     in a frame, whichever way (a target walking to and fro has a small :func:`recent_speed` and
