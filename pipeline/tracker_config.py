@@ -266,6 +266,11 @@ class DeciderConfig(Section):
         it, only near the prediction (``reacquire_gate_px_per_frame``) or found by the
         re-detection search with a colour match of ``reacquire_rho``: a target that turned
         while coasting is seen and refused.
+    redetect_local_margin : float
+        A missing target is not taken back by a find of the re-detection search away from
+        where the mean shift, near the prediction, matches its colour better by at least this
+        (the target is likelier still there, unseen by the filter, than at a look-alike
+        elsewhere), in [0, 1]; default 0.05; 1 never refuses.
     """
 
     section = "decider"
@@ -295,6 +300,7 @@ class DeciderConfig(Section):
     shared_colour_margin: float = param(0.05, ge=0, le=1)
     turn_search: bool = True
     reach_missing: bool = True
+    redetect_local_margin: float = param(0.05, ge=0, le=1)
 
 
 @dataclass(frozen=True)

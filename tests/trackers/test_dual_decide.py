@@ -253,6 +253,29 @@ def test_redetection_far_away_needs_the_colour_to_agree():
     )  # not searched
 
 
+def test_a_find_far_away_yields_to_a_better_colour_match_near_the_prediction():
+    """A hidden target whose mean shift near the prediction matches its colour at 0.85 is not
+    taken to a look-alike 100 px away that the re-detection search found at 0.75 (the colour
+    near the prediction takes it back there); a match near the prediction better by less than
+    ``redetect_local_margin``, or the margin at 1, leaves the find its place."""
+    ev = missing(
+        14,
+        appearance_box=at(200),
+        psr=12.0,
+        rho_appearance=0.75,
+        redetected=True,
+        meanshift_box=at(102),
+        rho_meanshift=0.85,
+    )
+    d = decide(ev)
+    assert (d.case, d.rule, d.box) == (Case.REACQUIRED, Rule.COLOUR_NEAR_PREDICTION, at(102))
+    assert decide(dataclasses.replace(ev, rho_meanshift=0.78)).rule == Rule.REDETECTED
+    assert decide(ev, DeciderConfig(redetect_local_margin=1.0)).rule == Rule.REDETECTED
+    # a find near the prediction is no look-alike elsewhere: it is taken
+    near = dataclasses.replace(ev, appearance_box=at(104))
+    assert decide(near).rule in (Rule.REDETECTED, Rule.APPEARANCE_NEAR_PREDICTION)
+
+
 def test_a_hidden_target_is_taken_back_where_its_speed_can_have_carried_it():
     """Last seen at x = 60, 3 frames ago, moving 10 px a frame: a confident detection at x = 85
     (15 px + 30 px of reach) is taken back though the prediction (x = 100) is 15 px off and the

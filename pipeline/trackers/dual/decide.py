@@ -32,7 +32,9 @@ Missing (hidden or lost; :data:`MISSING`)
     7. ``REDETECTED`` / ``APPEARANCE_NEAR_PREDICTION``: a filter detection at ``psr_reacquire``
        near the prediction, or where the target's speed can have carried it since it was last
        seen (``reach_missing``), or found farther by the re-detection search with a colour
-       match (where colour is seen) at ``reacquire_rho``;
+       match (where colour is seen) at ``reacquire_rho``; a find away from the prediction
+       yields where the mean shift near the prediction matches the colour better
+       (``redetect_local_margin``);
     8. ``CONTOUR_NEAR_PREDICTION``: a clean contour near the prediction whose colour agrees (or
        no colour to ask);
     9. ``COLOUR_NEAR_PREDICTION``: a colour match at ``reacquire_rho`` near the prediction;
@@ -425,8 +427,23 @@ class View:
 
     @property
     def reacquirable(self) -> bool:
-        """A filter detection strong enough to take a missing target back, near the
-        prediction or (found by the re-detection search) with the colour agreeing."""
+        """A filter detection strong enough to take a missing target back, where the target
+        may be (:meth:`find_placed`) and no better colour match near the prediction says it
+        is still there (:meth:`local_better`)."""
+        ev, cfg = self.ev, self.cfg
+        return (
+            self.appearance
+            and _good(ev.psr, cfg.psr_reacquire)
+            and not _on_background(ev, cfg)
+            and self.find_placed
+            and not (ev.redetected and self.local_better(ev.appearance_box, ev.rho_appearance))
+        )
+
+    @property
+    def find_placed(self) -> bool:
+        """The filter's detection lies near the prediction, or was found by the re-detection
+        search with the colour agreeing (``reacquire_rho``), or where the target can have got
+        to (:meth:`reached`)."""
         ev, cfg = self.ev, self.cfg
         colour_agrees = (
             not ev.colour_informative
@@ -434,14 +451,26 @@ class View:
             or ev.rho_appearance >= cfg.reacquire_rho
         )
         return (
-            self.appearance
-            and _good(ev.psr, cfg.psr_reacquire)
-            and not _on_background(ev, cfg)
-            and (
-                self.near_prior(ev.appearance_box)
-                or (ev.redetected and colour_agrees)
-                or self.reached(ev.appearance_box)
-            )
+            self.near_prior(ev.appearance_box)
+            or (ev.redetected and colour_agrees)
+            or self.reached(ev.appearance_box)
+        )
+
+    def local_better(self, box: BBox | None, rho_at: float) -> bool:
+        """``box`` lies away from the prediction, and the mean shift near the prediction
+        matches the target's colour better than ``box`` does (``rho_at``) by
+        ``redetect_local_margin``."""
+        ev, cfg = self.ev, self.cfg
+        return (
+            box is not None
+            and not self.near_prior(box)
+            and ev.colour_informative
+            and ev.meanshift_box is not None
+            and not math.isnan(rho_at)
+            and not math.isnan(ev.rho_meanshift)
+            and ev.rho_meanshift - rho_at >= cfg.redetect_local_margin
+            and self.near_prior(ev.meanshift_box)
+            and not self.agree(box, ev.meanshift_box)
         )
 
     def reached(self, box: BBox | None) -> bool:
