@@ -24,7 +24,7 @@ Usage::
     dualtrack synth random /tmp/dev --seeds 0-99 --targets 1
     python tools/scale_probe.py /tmp/dev/random-*
     python tools/scale_probe.py /tmp/dev/random-0760 --set scale_step=1.045 --set scale_count=17
-    python tools/scale_probe.py ../shared/realdata/*/
+    python tools/scale_probe.py ../shared/realdata/*/    # where it is beside the project
 """
 
 from __future__ import annotations
