@@ -17,7 +17,8 @@ does. What it finds is compared with the truth's height:
     the median over the frames of ``|log(found height / truth height)|``.
 
 Sparse truth (VTUAV: every tenth frame) is interpolated linearly between annotated frames; frames
-outside the truth are skipped. One target per sequence (the first of the truth).
+outside the truth, and frames whose truth box touches the frame's border (cut: its size is no
+longer the target's), are skipped. One target per sequence (the first of the truth).
 
 Usage::
 
@@ -78,6 +79,11 @@ def _dense(boxes: np.ndarray) -> np.ndarray:
     return out
 
 
+def _inside(box: BBox, width: int, height: int) -> bool:
+    """The box lies in the frame, at least a pixel from every border."""
+    return box.x >= 1 and box.y >= 1 and box.x + box.w <= width - 1 and box.y + box.h <= height - 1
+
+
 def probe(path: str, cfg: app.AppearanceConfig) -> dict[str, float] | None:
     """The filter's size against the truth's over one sequence; None without truth."""
     seq = open_sequence(path)
@@ -92,6 +98,8 @@ def probe(path: str, cfg: app.AppearanceConfig) -> dict[str, float] | None:
         if g is None or not np.all(np.isfinite(g)):
             continue
         box = BBox(*map(float, g))
+        if not _inside(box, seq.width, seq.height):
+            continue  # cut by the frame's border: its truth is no longer the target's size
         vis, ir = fr.visible, fr.infrared
         if model is None:
             model, size = app.train(vis, ir, box, cfg), (box.w, box.h)
@@ -138,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         except InputError as exc:
             raise SystemExit(f"scale_probe: {p}: {exc}") from None
         if r is None:
-            print(f"scale_probe: {p}: no truth, left out", file=sys.stderr)
+            print(f"scale_probe: {p}: no truth inside the frame, left out", file=sys.stderr)
             continue
         rows.append(r)
         print(
