@@ -34,7 +34,6 @@ import argparse
 import math
 import os
 import sys
-from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +42,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+from pipeline.config import load_config  # noqa: E402
 from pipeline.errors import InputError  # noqa: E402
 from pipeline.io.sequence import open_sequence  # noqa: E402
 from pipeline.stages import appearance as app  # noqa: E402
@@ -50,19 +50,11 @@ from pipeline.types import BBox  # noqa: E402
 
 
 def _config(sets: list[str]) -> app.AppearanceConfig:
-    """The filter's defaults with ``name=value`` overrides of ``dual.appearance``."""
-    cfg = app.AppearanceConfig()
-    kinds = {f.name: f for f in fields(cfg)}
-    for s in sets:
-        name, _, value = s.partition("=")
-        if name not in kinds:
-            raise SystemExit(f"scale_probe: no appearance parameter {name!r}")
-        cur = getattr(cfg, name)
-        if isinstance(cur, bool):
-            val: object = value.lower() in ("1", "true", "yes")
-        else:
-            val = type(cur)(value)
-        cfg = replace(cfg, **{name: val})
+    """The filter's defaults with ``name=value`` overrides of ``dual.appearance`` (coerced and
+    range-checked as ``--set`` is)."""
+    cfg = load_config(None, [f"dual.appearance.{s}" for s in sets]).dual.appearance
+    if cfg is None:
+        raise InputError("scale_probe: the probe needs the correlation filter")
     return cfg
 
 
@@ -134,7 +126,10 @@ def main(argv: list[str] | None = None) -> int:
         "--set", action="append", default=[], help="a dual.appearance parameter, name=value"
     )
     a = ap.parse_args(argv)
-    cfg = _config(a.set)
+    try:
+        cfg = _config(a.set)
+    except InputError as exc:
+        raise SystemExit(f"scale_probe: {exc}") from None
     print("| sequence | change | found | followed | median err |")
     print("|---|---|---|---|---|")
     rows = []
