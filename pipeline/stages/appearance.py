@@ -605,10 +605,12 @@ def _scale_hog(
     cell: int,
     bins: int,
     clip: float,
+    window: np.ndarray,
 ) -> np.ndarray:  # pragma: no cover (compiled)
     """Gradient features of the target at every scale: (d, S), each column the HOG of a ``th x tw``
     template sampled bilinearly (from the smoothed region ``img`` whose corner is frame px (ox,
-    oy)) over the box of size (w, h) * factor centred on (cx, cy)."""
+    oy)) over the box of size (w, h) * factor centred on (cx, cy), times ``window[k]``
+    (float32)."""
     H, W = img.shape
     S = factors.shape[0]
     d = (th // cell) * (tw // cell) * bins
@@ -631,8 +633,21 @@ def _scale_hog(
                 top = img[iy, ix] * (1 - ax) + img[iy, ix + 1] * ax
                 bot = img[iy + 1, ix] * (1 - ax) + img[iy + 1, ix + 1] * ax
                 tpl[r, c] = top * (1 - ay) + bot * ay
-        f = _hog_cells(tpl, cell, bins, clip)
-        out[:, k] = f.ravel()
+        f = _hog_cells(tpl, cell, bins, clip).ravel()
+        wk = window[k]
+        for i in range(d):
+            out[i, k] = f[i] * wk
+    return out
+
+
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _unit_region(src, y0, y1, x0, x1, s):  # pragma: no cover (compiled)
+    """``src[y0:y1, x0:x1]`` (uint8) as float32 times ``s`` (float32), as numpy's
+    ``astype(np.float32) * s``."""
+    out = np.empty((y1 - y0, x1 - x0), np.float32)
+    for i in range(y0, y1):
+        for j in range(x0, x1):
+            out[i - y0, j - x0] = np.float32(src[i, j]) * s
     return out
 
 
@@ -672,8 +687,9 @@ def _scale_samples(
     if x1 - x0 < 2 or y1 - y0 < 2:
         return np.zeros((d * len(sources), cfg.scale_count), np.float32)
     parts = []
+    window = _scale_window(cfg.scale_count)
     for src in sources:
-        region = src[y0:y1, x0:x1].astype(np.float32) * np.float32(1.0 / 255.0)
+        region = _unit_region(src, y0, y1, x0, x1, np.float32(1.0 / 255.0))
         down = size[1] / th  # anti-alias before sampling down
         if down > 1.5:
             region = cv2.GaussianBlur(region, (0, 0), 0.5 * down)
@@ -692,10 +708,10 @@ def _scale_samples(
                 cfg.cell_px,
                 cfg.hog_bins,
                 np.float32(cfg.hog_clip),
+                window,
             )
         )
-    S = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=0)
-    return S * _scale_window(cfg.scale_count)[None, :]
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=0)
 
 
 def _check_channels(vis_used: bool, ir_used: bool, channels: tuple[bool, bool]) -> None:
@@ -988,4 +1004,6 @@ def warm_up() -> None:
         4,
         9,
         np.float32(0.2),
+        np.ones(3, np.float32),
     )
+    _unit_region(np.zeros((4, 4), np.uint8), 1, 3, 1, 3, np.float32(1.0 / 255.0))

@@ -187,10 +187,33 @@ def warm_phi(
         borderValue=float(c0),
     )
     if dilate_px > 0:  # distance outside the previous inside, offset outward; flat -c0 inside
-        inside = phi < 0
-        d_out = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 3)
-        phi = np.where(inside, np.float32(-c0), d_out - np.float32(dilate_px))
+        d_out = cv2.distanceTransform(_outside(phi), cv2.DIST_L2, 3)
+        return _dilated(phi, d_out, np.float32(dilate_px), np.float32(c0))
     return np.clip(phi, -c0, c0).astype(np.float32)
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")  # no fastmath
+def _outside(phi):  # pragma: no cover (compiled)
+    """uint8 1 where ``phi >= 0`` (not inside), 0 inside."""
+    H, W = phi.shape
+    out = np.empty((H, W), np.uint8)
+    for i in range(H):
+        for j in range(W):
+            out[i, j] = 0 if phi[i, j] < 0 else 1
+    return out
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")  # no fastmath
+def _dilated(phi, d_out, dilate, c0):  # pragma: no cover (compiled)
+    """``-c0`` inside (``phi < 0``), ``d_out - dilate`` outside, clipped to ``+-c0`` (float32, as
+    numpy's ``where`` and ``clip`` give it)."""
+    H, W = phi.shape
+    out = np.empty((H, W), np.float32)
+    for i in range(H):
+        for j in range(W):
+            v = -c0 if phi[i, j] < 0 else d_out[i, j] - dilate
+            out[i, j] = min(max(v, -c0), c0)
+    return out
 
 
 @numba.njit(
@@ -448,3 +471,5 @@ def warm_up() -> None:
     phi[2:4, 2:4] = -2.0
     _subpixel_box(phi, phi < 0)
     _ring_contrast(np.zeros((6, 6), np.uint8), (phi < 0).astype(np.uint8))
+    _dilated(phi, np.abs(phi), np.float32(1.0), np.float32(2.0))
+    _outside(phi)

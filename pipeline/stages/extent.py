@@ -27,8 +27,10 @@ taken for the target's own part).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import cv2
+import numba
 import numpy as np
 
 from pipeline.params import Section, param
@@ -119,6 +121,62 @@ def trimmed_range(counts: np.ndarray, trim_fraction: float) -> tuple[float, floa
     return out[0], out[1]
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _window_mask(
+    bins, q, gx0, gy0, gx1, gy1, x0, y0, x1, y1, ratio
+):  # pragma: no cover (compiled)
+    """:func:`surround_histogram` (outside the grown box ``[gx0, gx1) x [gy0, gy1)``) and
+    :func:`target_mask` of the window ``[x0, x1) x [y0, y1)`` in one pass: the counts are whole
+    numbers, so the sums are numpy's exactly."""
+    H, W = bins.shape
+    n_bins = q.size
+    h = np.zeros(n_bins, np.float64)
+    for r in range(H):
+        for c in range(W):
+            h[bins[r, c]] += 1.0
+    if gx1 > gx0 and gy1 > gy0:
+        for r in range(gy0, gy1):
+            for c in range(gx0, gx1):
+                h[bins[r, c]] -= 1.0
+    s = 0.0
+    for u in range(n_bins):
+        s += h[u]
+    keep = np.zeros(n_bins, np.uint8)
+    for u in range(n_bins):
+        b = h[u] / s if s > 0 else h[u]
+        keep[u] = 1 if (q[u] > 0 and q[u] >= ratio * b) else 0
+    out = np.empty((y1 - y0, x1 - x0), np.uint8)
+    for r in range(y0, y1):
+        for c in range(x0, x1):
+            out[r - y0, c - x0] = keep[bins[r, c]]
+    return out
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _inner_counts(lab, n, ix0, iy0, ix1, iy1):  # pragma: no cover (compiled)
+    """Pixels of each label inside ``[ix0, ix1) x [iy0, iy1)`` (label 0 not counted)."""
+    inner = np.zeros(n, np.int64)
+    for r in range(iy0, iy1):
+        for c in range(ix0, ix1):
+            inner[lab[r, c]] += 1
+    inner[0] = 0
+    return inner
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _profiles(lab, j):  # pragma: no cover (compiled)
+    """The pixels of label ``j`` per column and per row."""
+    H, W = lab.shape
+    cols = np.zeros(W, np.int64)
+    rows = np.zeros(H, np.int64)
+    for r in range(H):
+        for c in range(W):
+            if lab[r, c] == j:
+                cols[c] += 1
+                rows[r] += 1
+    return cols, rows
+
+
 def search_window(box: BBox, cfg: ExtentConfig) -> BBox:
     """Where :func:`colour_extent` looks for the target's pixels: ``box`` grown by
     ``window_fraction`` of its mean size on every side."""
@@ -155,13 +213,26 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
     H, W = bins.shape
     if box.w < 2 or box.h < 2:
         return None
-    surround = surround_histogram(bins, box, cfg.gap_fraction, q.size)
     win = search_window(box, cfg)
     x0, y0 = max(int(np.floor(win.x)), 0), max(int(np.floor(win.y)), 0)
     x1, y1 = min(int(np.ceil(win.x2)), W), min(int(np.ceil(win.y2)), H)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return None
-    mask = target_mask(bins[y0:y1, x0:x1], q, surround, cfg.likelihood_ratio)
+    # surround_histogram and target_mask in one compiled pass
+    gx, gy = cfg.gap_fraction * box.w, cfg.gap_fraction * box.h
+    mask = _window_mask(
+        bins,
+        np.asarray(q, np.float64),
+        max(int(np.floor(box.x - gx)), 0),
+        max(int(np.floor(box.y - gy)), 0),
+        min(int(np.ceil(box.x2 + gx)), W),
+        min(int(np.ceil(box.y2 + gy)), H),
+        x0,
+        y0,
+        x1,
+        y1,
+        float(cfg.likelihood_ratio),
+    )
     k = max(round(0.15 * min(box.w, box.h)) | 1, 3)
     pad = cv2.copyMakeBorder(
         mask, k, k, k, k, cv2.BORDER_CONSTANT, value=0
@@ -179,8 +250,7 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
         max(min(int(np.ceil(box.x2)) - x0, x1 - x0), ix0 + 1),
         max(min(int(np.ceil(box.y2)) - y0, y1 - y0), iy0 + 1),
     )
-    inner = np.bincount(lab[iy0:iy1, ix0:ix1].ravel(), minlength=n)
-    inner[0] = 0
+    inner = _inner_counts(lab, n, ix0, iy0, ix1, iy1)
     j = int(np.argmax(inner))
     if inner[j] == 0 or stats[j, cv2.CC_STAT_AREA] < cfg.min_fill * box.area:
         return None
@@ -196,11 +266,7 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
         or (sy + sh == y1 - y0 and y1 < H)
     ):
         return None
-    part = lab == j
-    cols, rows = (
-        part.sum(axis=0),
-        part.sum(axis=1),
-    )  # the component's pixels per column and per row
+    cols, rows = _profiles(lab, j)  # the component's pixels per column and per row
     if cfg.trim_fraction > 0:
         ex0, ex1 = trimmed_range(cols, cfg.trim_fraction)
         ey0, ey1 = trimmed_range(rows, cfg.trim_fraction)
@@ -213,3 +279,16 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
     if not (1 / r <= out.w / box.w <= r and 1 / r <= out.h / box.h <= r):
         return None
     return out
+
+
+@cache
+def warm_up() -> None:
+    """Compile (first run) or load from numba's cache the extent's kernels once per process, for
+    the argument types the tracker passes (colour bins int32, intensity bins uint8; labels
+    int32)."""
+    for dtype in (np.int32, np.uint8):
+        bins = np.zeros((6, 6), dtype)
+        _window_mask(bins, np.ones(2), 1, 1, 4, 4, 0, 0, 6, 6, 2.0)
+    lab = np.zeros((4, 4), np.int32)
+    _inner_counts(lab, 2, 0, 0, 2, 2)
+    _profiles(lab, 1)

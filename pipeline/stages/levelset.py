@@ -186,6 +186,35 @@ def _diff_pair(a):  # pragma: no cover (compiled)
     return dx, dy
 
 
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")  # no fastmath
+def _edge_kernel(f, edge_scale, auto):  # pragma: no cover (compiled)
+    """:func:`edge_map` after the smoothing, in one compiled call with numpy's float32
+    arithmetic: ``|grad f|^2``, the automatic kappa (3 x the square root of the median of
+    every other pixel of every other row: the element a partition selects, whatever the
+    algorithm), ``g`` and its gradient."""
+    ix, iy = _diff_pair(f)
+    H, W = f.shape
+    mag2 = ix * ix + iy * iy
+    kappa = edge_scale
+    if auto:
+        sample = np.empty(((H + 1) // 2) * ((W + 1) // 2), np.float32)
+        n = 0
+        for i in range(0, H, 2):
+            for j in range(0, W, 2):
+                sample[n] = mag2[i, j]
+                n += 1
+        med = np.partition(sample, n // 2)[n // 2]
+        kappa = max(kappa, 3.0 * float(np.sqrt(med)))
+    c = np.float32(1.0 / (kappa * kappa))
+    one = np.float32(1.0)
+    g = np.empty((H, W), np.float32)
+    for i in range(H):
+        for j in range(W):
+            g[i, j] = one / (one + mag2[i, j] * c)
+    gx, gy = _diff_pair(g)
+    return g, gx, gy, kappa
+
+
 def edge_map(ir: np.ndarray, cfg: LevelSetConfig) -> EdgeMap:
     """g = 1/(1 + |grad(G_sigma * I)|^2 / kappa^2) on 0..255 intensities, and grad g.
 
@@ -199,16 +228,7 @@ def edge_map(ir: np.ndarray, cfg: LevelSetConfig) -> EdgeMap:
     f = cv2.GaussianBlur(
         ir.astype(np.float32), (0, 0), cfg.smoothing_sigma_px, borderType=cv2.BORDER_REFLECT
     )
-    ix, iy = _central_diff_fast(f)
-    mag2 = ix * ix + iy * iy
-    kappa = cfg.edge_scale
-    if cfg.edge_scale_auto:
-        sample = mag2[::2, ::2].ravel()
-        kappa = max(
-            kappa, 3.0 * float(np.sqrt(np.partition(sample, sample.size // 2)[sample.size // 2]))
-        )
-    g = 1.0 / (1.0 + mag2 * np.float32(1.0 / (kappa * kappa)))
-    gx, gy = _central_diff_fast(g)
+    g, gx, gy, kappa = _edge_kernel(f, float(cfg.edge_scale), bool(cfg.edge_scale_auto))
     return EdgeMap(g, gx, gy, kappa)
 
 

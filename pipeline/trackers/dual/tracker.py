@@ -12,6 +12,7 @@ from typing import ClassVar
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app_stage
 from pipeline.stages import contour as contour_stage
+from pipeline.stages import extent as extent_stage
 from pipeline.stages import histogram as histogram_stage
 from pipeline.stages.contour import ContourResult
 from pipeline.stages.detection import DetectionConfig
@@ -148,6 +149,7 @@ class Dual:
         frame does not pay for them."""
         histogram_stage.warm_up()
         contour_stage.warm_up()
+        extent_stage.warm_up()
         if self.appearance is not None:
             app_stage.warm_up()
 
