@@ -185,26 +185,29 @@ def _hog_cells(
     multiples of cell."""
     H, W = grey.shape
     hc, wc = H // cell, W // cell
-    hist = np.zeros((hc, wc, bins), np.float32)
+    flat = np.zeros(hc * wc * bins, np.float32)
     mag = np.zeros(W, np.float32)
     pos = np.zeros(W, np.float64)
     for y in range(1, H - 1):
         _row_gradients(grey, y, W, bins, mag, pos)
-        cy = y // cell
-        for x in range(1, W - 1):
-            m = mag[x]
-            if m <= 0.0:
-                continue
-            b0 = int(np.floor(pos[x]))
-            f = pos[x] - b0
-            b1 = b0 + 1
-            if b0 < 0:
-                b0 += bins
-            if b1 >= bins:
-                b1 -= bins
-            cx = x // cell
-            hist[cy, cx, b0] += m * (1.0 - f)
-            hist[cy, cx, b1] += m * f
+        row = (y // cell) * wc * bins
+        # cell by cell along the row (no division a pixel); the same order of additions
+        for cx in range(wc):
+            base = row + cx * bins
+            for x in range(max(cx * cell, 1), min(cx * cell + cell, W - 1)):
+                m = mag[x]
+                if m <= 0.0:
+                    continue
+                b0 = int(np.floor(pos[x]))
+                f = pos[x] - b0
+                b1 = b0 + 1
+                if b0 < 0:
+                    b0 += bins
+                if b1 >= bins:
+                    b1 -= bins
+                flat[base + b0] += m * (1.0 - f)
+                flat[base + b1] += m * f
+    hist = flat.reshape((hc, wc, bins))
     energy = np.zeros((hc, wc), np.float32)
     for cy in range(hc):
         for cx in range(wc):
@@ -616,20 +619,26 @@ def _scale_hog(
     d = (th // cell) * (tw // cell) * bins
     out = np.empty((d, S), np.float32)
     tpl = np.empty((th, tw), np.float32)
+    ixs = np.empty(tw, np.int64)
+    axs = np.empty(tw, np.float64)
     for k in range(S):
         bw, bh = w * factors[k], h * factors[k]
         sx, sy = bw / tw, bh / th
         x0, y0 = cx - 0.5 * bw - ox, cy - 0.5 * bh - oy
+        for c in range(tw):  # the columns' sample positions, the same on every row
+            fx = x0 + (c + 0.5) * sx - 0.5
+            fx = min(max(fx, 0.0), W - 1.0)
+            ix = min(int(fx), W - 2) if W > 1 else 0
+            ixs[c] = ix
+            axs[c] = fx - ix
         for r in range(th):
             fy = y0 + (r + 0.5) * sy - 0.5
             fy = min(max(fy, 0.0), H - 1.0)
             iy = min(int(fy), H - 2) if H > 1 else 0
             ay = fy - iy
             for c in range(tw):
-                fx = x0 + (c + 0.5) * sx - 0.5
-                fx = min(max(fx, 0.0), W - 1.0)
-                ix = min(int(fx), W - 2) if W > 1 else 0
-                ax = fx - ix
+                ix = ixs[c]
+                ax = axs[c]
                 top = img[iy, ix] * (1 - ax) + img[iy, ix + 1] * ax
                 bot = img[iy + 1, ix] * (1 - ax) + img[iy + 1, ix + 1] * ax
                 tpl[r, c] = top * (1 - ay) + bot * ay
