@@ -235,6 +235,100 @@ def ellipse_shift(bins, weights, cx, cy, hx, hy):  # pragma: no cover (compiled)
     return sw, sx, sy
 
 
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
+def _pairwise_block(a, lo, n):  # pragma: no cover (compiled)
+    """numpy's pairwise sum of at most 128 values (see :func:`pairwise_sum`)."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    end = n - n % 8
+    while i < end:
+        k = lo + i
+        r0 += a[k]
+        r1 += a[k + 1]
+        r2 += a[k + 2]
+        r3 += a[k + 3]
+        r4 += a[k + 4]
+        r5 += a[k + 5]
+        r6 += a[k + 6]
+        r7 += a[k + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
+def pairwise_sum(a, lo, n):  # pragma: no cover (compiled)
+    """The float64 values ``a[lo:lo + n]`` summed as numpy sums them: blocks of up to 128 values
+    with eight running sums, longer runs halved (at a multiple of eight) and the halves' sums
+    added. Without recursion (numba's cache does not keep recursive functions): a stack of the
+    halves still open."""
+    if n <= 128:
+        return _pairwise_block(a, lo, n)
+    los = np.empty(64, np.int64)
+    ns = np.empty(64, np.int64)
+    stage = np.zeros(64, np.int64)
+    left = np.empty(64, np.float64)
+    sp = 0
+    los[0], ns[0], stage[0] = lo, n, 0
+    ret = 0.0
+    while sp >= 0:
+        m = ns[sp]
+        if m <= 128:
+            ret = _pairwise_block(a, los[sp], m)
+            sp -= 1
+            continue
+        n2 = m // 2
+        n2 -= n2 % 8
+        if stage[sp] == 0:  # the first half
+            stage[sp] = 1
+            los[sp + 1], ns[sp + 1], stage[sp + 1] = los[sp], n2, 0
+            sp += 1
+        elif stage[sp] == 1:  # the first half's sum is in, the second half
+            left[sp] = ret
+            stage[sp] = 2
+            los[sp + 1], ns[sp + 1], stage[sp + 1] = los[sp] + n2, m - n2, 0
+            sp += 1
+        else:
+            ret = left[sp] + ret
+            sp -= 1
+    return ret
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
+def np_sum(a):  # pragma: no cover (compiled)
+    """``float(numpy.sum(a))`` of a 1-D float64 array, to the last bit."""
+    return 0.0 + pairwise_sum(a, 0, a.size)
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
+def ellipse_model_kernel(bins, cx, cy, hx, hy, n_bins):  # pragma: no cover (compiled)
+    """:func:`ellipse_model` compiled (half-axes positive): the same values to the last bit."""
+    h, mass, n = ellipse_histogram(bins, cx, cy, hx, hy, n_bins)
+    s = np_sum(h)
+    full_mass = np.pi * hx * hy / 2.0
+    if s > 0:
+        h = h / s
+    return h, n, min(mass / full_mass, 1.0)
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
+def bhattacharyya_kernel(p, q):  # pragma: no cover (compiled)
+    """:func:`bhattacharyya` compiled (same shapes): the same value to the last bit."""
+    t = np.empty(p.size, np.float64)
+    for i in range(p.size):
+        t[i] = np.sqrt(p[i] * q[i])
+    return np_sum(t)
+
+
 def ellipse_model(
     bins: NDArray[np.int32], cx: float, cy: float, hx: float, hy: float, n_bins: int
 ) -> tuple[NDArray[np.float64], int, float]:
@@ -243,10 +337,8 @@ def ellipse_model(
     """
     if hx <= 0 or hy <= 0:
         raise ValueError(f"half-axes must be positive; got ({hx}, {hy})")
-    h, mass, n = ellipse_histogram(bins, float(cx), float(cy), float(hx), float(hy), n_bins)
-    s = h.sum()
-    full_mass = np.pi * hx * hy / 2.0
-    return (h / s if s > 0 else h), int(n), float(min(mass / full_mass, 1.0))
+    h, n, frac = ellipse_model_kernel(bins, float(cx), float(cy), float(hx), float(hy), n_bins)
+    return h, int(n), float(frac)
 
 
 def window_histogram(
@@ -285,6 +377,8 @@ def bhattacharyya(p: NDArray[np.float64], q: NDArray[np.float64]) -> float:
     """Bhattacharyya coefficient ``rho = sum_u sqrt(p_u q_u)`` (eq. 3), in [0, 1]."""
     if p.shape != q.shape:
         raise ValueError(f"histograms must have the same shape; got {p.shape} vs {q.shape}")
+    if p.ndim == 1 and p.dtype == np.float64 and q.dtype == np.float64:
+        return float(bhattacharyya_kernel(p, q))
     return float(np.sqrt(p * q).sum())
 
 
@@ -345,10 +439,12 @@ def warm_up() -> None:
         bins = np.zeros((4, 4), dtype)
         ellipse_histogram(bins, 2.0, 2.0, 1.5, 1.5, 2)
         ellipse_shift(bins, np.ones(2), 2.0, 2.0, 1.5, 1.5)
+        ellipse_model_kernel(bins, 2.0, 2.0, 1.5, 1.5, 2)
     ellipse_histogram(
         np.zeros((4, 4), np.uint8), 2.0, 2.0, 1.5, 1.5, 2, np.ones((4, 4), bool)
     )  # CamShift's test
     hsv_bin_image(np.zeros((2, 2, 3), np.uint8), HistogramConfig())
+    bhattacharyya_kernel(np.ones(2), np.ones(2))
     image = np.zeros((4, 4, 3), np.uint8)
     bright_fraction(image, 30.0)
     bright_fraction(image[1:3, 1:3], 30.0)  # frame crops are not contiguous

@@ -12,11 +12,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from pipeline.params import Section, param
-from pipeline.stages.histogram import bhattacharyya, ellipse_model, ellipse_shift
+from pipeline.stages.histogram import (
+    bhattacharyya,
+    bhattacharyya_kernel,
+    ellipse_model,
+    ellipse_model_kernel,
+    ellipse_shift,
+)
 
 
 @dataclass(frozen=True)
@@ -96,6 +103,43 @@ def _model(
     return ellipse_model(bins, c[0], c[1], half[0], half[1], m)
 
 
+@numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
+def _mean_shift_kernel(bins, q, x, y, hx, hy, max_iterations, eps2, max_halvings):
+    # pragma: no cover (compiled)
+    """:func:`mean_shift`'s loop in one compiled call, the same arithmetic in the same order:
+    ``(x, y, rho, p, iterations, converged, halvings, mass_fraction, no_support)``."""
+    m = q.shape[0]
+    p0, n0, mass0 = ellipse_model_kernel(bins, x, y, hx, hy, m)
+    rho0 = bhattacharyya_kernel(p0, q)
+    halvings = 0
+    ratio = np.zeros(m, np.float64)
+    for it in range(1, max_iterations + 1):
+        if n0 == 0:
+            return x, y, rho0, p0, it - 1, False, halvings, 0.0, True
+        for u in range(m):
+            ratio[u] = np.sqrt(q[u] / p0[u]) if p0[u] > 0 else 0.0
+        ws, wx, wy = ellipse_shift(bins, ratio, x, y, hx, hy)
+        if ws <= 0:
+            return x, y, rho0, p0, it - 1, False, halvings, mass0, True
+        x1, y1 = wx / ws, wy / ws
+        p1, n1, mass1 = ellipse_model_kernel(bins, x1, y1, hx, hy, m)
+        rho1 = bhattacharyya_kernel(p1, q)
+        n_half = 0
+        while rho1 < rho0 and n_half < max_halvings:
+            if (x1 - x) * (x1 - x) + (y1 - y) * (y1 - y) < eps2:
+                break
+            x1, y1 = 0.5 * (x + x1), 0.5 * (y + y1)
+            p1, n1, mass1 = ellipse_model_kernel(bins, x1, y1, hx, hy, m)
+            rho1 = bhattacharyya_kernel(p1, q)
+            n_half += 1
+        halvings += n_half
+        moved2 = (x1 - x) * (x1 - x) + (y1 - y) * (y1 - y)
+        x, y, n0, p0, rho0, mass0 = x1, y1, n1, p1, rho1, mass1
+        if moved2 < eps2:
+            return x, y, rho0, p0, it, True, halvings, mass0, False
+    return x, y, rho0, p0, max_iterations, False, halvings, mass0, False
+
+
 def mean_shift(
     bins: NDArray[np.int32],
     q: NDArray[np.float64],
@@ -128,6 +172,29 @@ def mean_shift(
     if bins.ndim != 2:
         raise ValueError(f"bins must be 2-D; got shape {bins.shape}")
     m = q.shape[0]
+    if iter_callback is None and q.ndim == 1 and q.dtype == np.float64 and half_size[0] > 0:
+        if half_size[1] > 0:  # the loop below, compiled
+            x, y, rho, p, it, conv, halv, mass, nosup = _mean_shift_kernel(
+                bins,
+                q,
+                float(start[0]),
+                float(start[1]),
+                float(half_size[0]),
+                float(half_size[1]),
+                cfg.max_iterations,
+                cfg.epsilon_px**2,
+                cfg.max_halvings,
+            )
+            return MeanShiftResult(
+                (float(x), float(y)),
+                float(rho),
+                p,
+                int(it),
+                bool(conv),
+                int(halv),
+                float(mass),
+                bool(nosup),
+            )
     y0 = (float(start[0]), float(start[1]))
     p0, n0, mass0 = _model(bins, y0, half_size, m)
     rho0 = bhattacharyya(p0, q)
