@@ -188,25 +188,34 @@ def _hog_cells(
     flat = np.zeros(hc * wc * bins, np.float32)
     mag = np.zeros(W, np.float32)
     pos = np.zeros(W, np.float64)
+    i0 = np.zeros(W, np.int64)
+    i1 = np.zeros(W, np.int64)
+    w0 = np.zeros(W, np.float64)
+    w1 = np.zeros(W, np.float64)
     for y in range(1, H - 1):
         _row_gradients(grey, y, W, bins, mag, pos)
+        # the two bins and weights of every pixel of the row, in vector registers
+        for x in range(1, W - 1):
+            p = pos[x]
+            b0 = np.int64(np.floor(p))
+            f = p - b0
+            b1 = b0 + 1
+            i0[x] = b0 + bins if b0 < 0 else b0
+            i1[x] = b1 - bins if b1 >= bins else b1
+            m = mag[x]
+            w0[x] = m * (1.0 - f)
+            w1[x] = m * f
+        # then added to the cells: neighbouring cells in turn, so that consecutive additions do
+        # not wait on each other; each bin still receives its pixels in the same order
         row = (y // cell) * wc * bins
-        # cell by cell along the row (no division a pixel); the same order of additions
-        for cx in range(wc):
-            base = row + cx * bins
-            for x in range(max(cx * cell, 1), min(cx * cell + cell, W - 1)):
-                m = mag[x]
-                if m <= 0.0:
+        for dx in range(cell):
+            for cx in range(wc):
+                x = cx * cell + dx
+                if x < 1 or x >= W - 1 or mag[x] <= 0.0:
                     continue
-                b0 = int(np.floor(pos[x]))
-                f = pos[x] - b0
-                b1 = b0 + 1
-                if b0 < 0:
-                    b0 += bins
-                if b1 >= bins:
-                    b1 -= bins
-                flat[base + b0] += m * (1.0 - f)
-                flat[base + b1] += m * f
+                base = row + cx * bins
+                flat[base + i0[x]] += w0[x]
+                flat[base + i1[x]] += w1[x]
     hist = flat.reshape((hc, wc, bins))
     energy = np.zeros((hc, wc), np.float32)
     for cy in range(hc):

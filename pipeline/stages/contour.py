@@ -31,6 +31,8 @@ import numpy as np
 
 from pipeline.params import Section, param
 from pipeline.stages import levelset
+from pipeline.stages._labels import counts_in_rect, select_labels
+from pipeline.stages._labels import warm_up as labels_warm_up
 from pipeline.stages.levelset import LevelSetConfig, box_step, edge_map, evolve
 from pipeline.types import BBox, Points
 
@@ -297,7 +299,13 @@ def _subpixel_box(phi: np.ndarray, mask: np.ndarray) -> tuple[float, float, floa
     """Box (x0, y0, x1, y1) of ``mask`` with each edge at the farthest interpolated zero crossing
     of phi along the rows (left, right) or columns (top, bottom) that reach the mask's extreme."""
     m = mask.astype(np.uint8)
-    c0, r0, bw, bh = cv2.boundingRect(m)
+    return _subpixel_edges(phi, m, *cv2.boundingRect(m))
+
+
+def _subpixel_edges(
+    phi: np.ndarray, m: np.ndarray, c0: int, r0: int, bw: int, bh: int
+) -> tuple[float, float, float, float]:
+    """:func:`_subpixel_box` of the uint8 mask ``m`` whose bounding rectangle is given."""
     c1, r1 = c0 + bw - 1, r0 + bh - 1
     left = c0 + 0.5 - _reach(phi, m, c0, r0, r1 + 1, -1, True)
     right = c1 + 0.5 + _reach(phi, m, c1, r0, r1 + 1, 1, True)
@@ -388,13 +396,15 @@ def extract_contour(
             warm,
         )
     ex = expected.shifted(-x0, -y0)
-    ex_mask = np.zeros(mask.shape, bool)
-    ex_mask[
-        max(int(ex.y), 0) : max(int(np.ceil(ex.y2)), 0),
-        max(int(ex.x), 0) : max(int(np.ceil(ex.x2)), 0),
-    ] = True
-    inside_counts = np.bincount(labels[ex_mask], minlength=n)
-    inside_counts[0] = 0
+    # the labels' pixels inside the expected box (numpy's slicing: the lower ends at 0)
+    inside_counts = counts_in_rect(
+        labels,
+        n,
+        max(int(ex.x), 0),
+        max(int(ex.y), 0),
+        max(int(np.ceil(ex.x2)), 0),
+        max(int(np.ceil(ex.y2)), 0),
+    )
     best = int(np.argmax(inside_counts))
     if inside_counts[best] == 0:
         return ContourResult(
@@ -408,23 +418,23 @@ def extract_contour(
             tuple(comps),
             warm,
         )
-    sel = labels == best
+    chosen = np.zeros(n, np.bool_)
+    chosen[best] = True
     grown = ex.scaled(1.15)
     for i in range(1, n):
         if i == best or stats[i, 4] < 4:
             continue
         b = BBox(float(stats[i, 0]), float(stats[i, 1]), float(stats[i, 2]), float(stats[i, 3]))
         if b.intersect(grown).area >= cfg.part_fraction * b.area:
-            sel |= labels == i
-    sel_u8 = sel.astype(np.uint8)
-    bx, by, bw, bh = cv2.boundingRect(sel_u8)
+            chosen[i] = True
+    sel_u8, bx, by, bw, bh = select_labels(labels, chosen)
     h, w = mask.shape
     touches = by <= 1 or bx <= 1 or by + bh - 1 >= h - 2 or bx + bw - 1 >= w - 2
     at_border = (
         (bx <= 1 and x0 == 0) or (bx + bw - 1 >= w - 2 and x1 == W),
         (by <= 1 and y0 == 0) or (by + bh - 1 >= h - 2 and y1 == H),
     )
-    left, top, right, bottom = _subpixel_box(phi, sel)
+    left, top, right, bottom = _subpixel_edges(phi, sel_u8, bx, by, bw, bh)
     box = BBox(left + x0, top + y0, right - left, bottom - top)
     contrast = _ring_contrast(roi, sel_u8)
     cs, _ = cv2.findContours(sel_u8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
@@ -467,6 +477,7 @@ def warm_up() -> None:
     ring contrast's) once per process, so that a tracker's first timed frame does not pay for it.
     """
     levelset.warm_up()
+    labels_warm_up()
     phi = np.full((6, 6), 2.0, np.float32)
     phi[2:4, 2:4] = -2.0
     _subpixel_box(phi, phi < 0)

@@ -34,6 +34,8 @@ import numba
 import numpy as np
 
 from pipeline.params import Section, param
+from pipeline.stages._labels import counts_in_rect, label_profiles
+from pipeline.stages._labels import warm_up as labels_warm_up
 from pipeline.types import BBox
 
 
@@ -107,17 +109,28 @@ def trimmed_range(counts: np.ndarray, trim_fraction: float) -> tuple[float, floa
     >>> trimmed_range(np.array([0, 2, 5, 3]), 0.1)
     (1.0, 3.0)
     """
-    n = int(counts.sum())
+    lo, hi = _trimmed_range(np.asarray(counts, np.int64), float(trim_fraction))
+    return float(lo), float(hi)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _trimmed_range(counts, trim_fraction):  # pragma: no cover (compiled)
+    """:func:`trimmed_range` compiled: the same float64 operations as numpy's percentile."""
+    n = 0
+    for v in counts:
+        n += v
     cum = np.cumsum(counts)
-    out = []
-    for q in np.array([100 * trim_fraction, 100 * (1 - trim_fraction)]) / 100:
-        at = q * (n - 1)
+    out = np.empty(2, np.float64)
+    qs = ((100.0 * trim_fraction) / 100.0, (100.0 * (1.0 - trim_fraction)) / 100.0)
+    for i in range(2):
+        at = qs[i] * (n - 1)
         k = int(np.floor(at))
-        a, b = np.searchsorted(cum, [k, min(k + 1, n - 1)], side="right").astype(np.float64)
+        a = float(np.searchsorted(cum, k, side="right"))
+        b = float(np.searchsorted(cum, min(k + 1, n - 1), side="right"))
         t = at - k
         # numpy's _lerp, so that the values equal np.percentile's to the last bit
         d = b - a
-        out.append(float(b - d * (1 - t) if t >= 0.5 else a + d * t))
+        out[i] = b - d * (1 - t) if t >= 0.5 else a + d * t
     return out[0], out[1]
 
 
@@ -150,31 +163,6 @@ def _window_mask(
         for c in range(x0, x1):
             out[r - y0, c - x0] = keep[bins[r, c]]
     return out
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _inner_counts(lab, n, ix0, iy0, ix1, iy1):  # pragma: no cover (compiled)
-    """Pixels of each label inside ``[ix0, ix1) x [iy0, iy1)`` (label 0 not counted)."""
-    inner = np.zeros(n, np.int64)
-    for r in range(iy0, iy1):
-        for c in range(ix0, ix1):
-            inner[lab[r, c]] += 1
-    inner[0] = 0
-    return inner
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _profiles(lab, j):  # pragma: no cover (compiled)
-    """The pixels of label ``j`` per column and per row."""
-    H, W = lab.shape
-    cols = np.zeros(W, np.int64)
-    rows = np.zeros(H, np.int64)
-    for r in range(H):
-        for c in range(W):
-            if lab[r, c] == j:
-                cols[c] += 1
-                rows[r] += 1
-    return cols, rows
 
 
 def search_window(box: BBox, cfg: ExtentConfig) -> BBox:
@@ -250,7 +238,7 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
         max(min(int(np.ceil(box.x2)) - x0, x1 - x0), ix0 + 1),
         max(min(int(np.ceil(box.y2)) - y0, y1 - y0), iy0 + 1),
     )
-    inner = _inner_counts(lab, n, ix0, iy0, ix1, iy1)
+    inner = counts_in_rect(lab, n, ix0, iy0, ix1, iy1)
     j = int(np.argmax(inner))
     if inner[j] == 0 or stats[j, cv2.CC_STAT_AREA] < cfg.min_fill * box.area:
         return None
@@ -266,7 +254,7 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
         or (sy + sh == y1 - y0 and y1 < H)
     ):
         return None
-    cols, rows = _profiles(lab, j)  # the component's pixels per column and per row
+    cols, rows = label_profiles(lab, j)  # the component's pixels per column and per row
     if cfg.trim_fraction > 0:
         ex0, ex1 = trimmed_range(cols, cfg.trim_fraction)
         ey0, ey1 = trimmed_range(rows, cfg.trim_fraction)
@@ -289,6 +277,5 @@ def warm_up() -> None:
     for dtype in (np.int32, np.uint8):
         bins = np.zeros((6, 6), dtype)
         _window_mask(bins, np.ones(2), 1, 1, 4, 4, 0, 0, 6, 6, 2.0)
-    lab = np.zeros((4, 4), np.int32)
-    _inner_counts(lab, 2, 0, 0, 2, 2)
-    _profiles(lab, 1)
+    labels_warm_up()
+    _trimmed_range(np.arange(4, dtype=np.int64), 0.02)
