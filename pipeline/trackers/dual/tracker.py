@@ -14,6 +14,7 @@ from pipeline.stages import appearance as app_stage
 from pipeline.stages import contour as contour_stage
 from pipeline.stages import extent as extent_stage
 from pipeline.stages import histogram as histogram_stage
+from pipeline.stages import model_update as model_update_stage
 from pipeline.stages.contour import ContourResult
 from pipeline.stages.detection import DetectionConfig
 from pipeline.stages.model_update import UpdateDecision
@@ -150,6 +151,7 @@ class Dual:
         histogram_stage.warm_up()
         contour_stage.warm_up()
         extent_stage.warm_up()
+        model_update_stage.warm_up()
         if self.appearance is not None:
             app_stage.warm_up()
 
