@@ -940,13 +940,32 @@ def rescale(
         np.sum(np.conj(model.s_num) * _rfft_rows(S), axis=0) / (model.s_den + cfg.lambda_reg),
         cfg.scale_count,
     )
-    rs = np.fft.fftshift(rs)
-    k = int(np.argmax(rs))
+    k, off = _scale_peak(rs)
     f = _scale_factors(cfg.scale_count, cfg.scale_step)
-    off = float(_refine(rs[k - 1], rs[k], rs[k + 1])) if 0 < k < cfg.scale_count - 1 else 0.0
     factor = float(f[k] * cfg.scale_step**off)
-    factor = float(np.clip(factor, 1 / cfg.max_scale_change, cfg.max_scale_change))
-    return replace(d, size=(sz[0] * factor, sz[1] * factor), scale_factor=factor)
+    factor = min(max(factor, 1 / cfg.max_scale_change), cfg.max_scale_change)
+    return Detection(
+        d.center, d.peak, d.psr, (sz[0] * factor, sz[1] * factor), factor, d.support, d.response
+    )
+
+
+@numba.njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+def _scale_peak(rs):  # pragma: no cover (compiled)
+    """The scale response's peak after ``fftshift``: its index and :func:`_refine`'s offset (0 at
+    either end)."""
+    n = rs.shape[0]
+    h = n // 2
+    k = 0
+    best = rs[(0 - h) % n]
+    for j in range(1, n):
+        v = rs[(j - h) % n]
+        if best != best:  # numpy's argmax: the first NaN wins
+            break
+        if v > best or v != v:
+            best, k = v, j
+    if 0 < k < n - 1:
+        return k, _refine(rs[(k - 1 - h) % n], best, rs[(k + 1 - h) % n])
+    return k, 0.0
 
 
 def update(
@@ -993,7 +1012,8 @@ def warm_up() -> None:
     features(None, np.zeros((8, 8), np.uint8), AppearanceConfig())
     r = np.zeros((5, 5))
     _peak(r)
-    _refine(0.0, 1.0, 0.0)  # the scale peak's, called from Python
+    _refine(0.0, 1.0, 0.0)
+    _scale_peak(np.array([0.0, 1.0, 0.5]))
     _psr(r, 2, 2, 1)
     # the argument types the tracker passes: cached channel masks are read-only, the filter's
     # denominator is float32
