@@ -126,3 +126,29 @@ def test_a_one_based_results_file_is_read_as_one(tmp_path):
     exact = evaluate_files(root, root / "groundtruth_rect.txt", results_base=1)
     assert as_zero["mean_error_px"] == pytest.approx(2**0.5)
     assert exact["mean_error_px"] == 0.0 and exact["p5"] == 1.0
+
+
+def test_frame_truth_equals_the_sequence_scores_to_the_last_bit():
+    """The per-frame scores the recording and the CSV stream (computed in Python floats) equal
+    ``center_errors`` and ``ious`` on the same boxes, bit for bit: overlapping, touching,
+    disjoint, identical and nested boxes, and a target not reported (inf, 0)."""
+    from pipeline.eval import frame_truth
+    from pipeline.eval.single import center_errors, ious
+    from pipeline.types import BBox, FrameResult, TargetResult, TargetStatus
+
+    rng = np.random.default_rng(5)
+    gt = rng.uniform(0, 200, (300, 4))
+    gt[:, 2:] = rng.uniform(1, 80, (300, 2))
+    pred = gt + rng.normal(0, 15, (300, 4))
+    pred[:, 2:] = np.abs(pred[:, 2:]) + 0.5
+    pred[::10] = gt[::10]  # identical
+    pred[5::10, 0] = gt[5::10, 0] + gt[5::10, 2]  # touching on the right
+    pred[7::10, 0] = gt[7::10, 0] + 500  # disjoint
+    truth = Truth({"infrared": {1: gt}}, {}, {}, False)
+    for i in range(300):
+        status = TargetStatus.LOST if i % 13 == 0 else TargetStatus.TRACKING
+        r = FrameResult(i + 1, (TargetResult(1, BBox(*pred[i]), status, "x"),))
+        ft = frame_truth(truth, r)
+        p = pred[i : i + 1] if status.is_reported else np.full((1, 4), np.nan)
+        assert ft.center_error_px[1] == center_errors(p, gt[i : i + 1])[0]
+        assert ft.iou[1] == ious(p, gt[i : i + 1])[0]
