@@ -122,3 +122,34 @@ def test_trimmed_range_equals_numpys_percentiles_to_the_last_bit():
         for trim in (0.01, 0.02, 0.1, 0.2):
             ref = tuple(float(v) for v in np.percentile(values, [100 * trim, 100 * (1 - trim)]))
             assert trimmed_range(counts, trim) == ref
+
+
+def test_compiled_window_mask_equals_surround_histogram_and_target_mask():
+    """colour_extent's one compiled pass is surround_histogram then target_mask on the window: the
+    two documented steps and the kernel must not drift apart (same mask, pixel for pixel)."""
+    from pipeline.stages.extent import _window_mask
+
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        bins = rng.integers(0, 8, (40, 50)).astype(np.uint8)
+        q = rng.random(8) * (rng.random(8) < 0.7)
+        q /= max(q.sum(), 1e-12)
+        box = BBox(rng.uniform(5, 30), rng.uniform(5, 20), rng.uniform(3, 15), rng.uniform(3, 15))
+        s = surround_histogram(bins, box, 0.25, 8)
+        x0, y0, x1, y1 = 2, 3, 45, 37
+        ref = target_mask(bins[y0:y1, x0:x1], q, s, 2.0)
+        gx, gy = 0.25 * box.w, 0.25 * box.h
+        got = _window_mask(
+            bins,
+            q,
+            max(int(np.floor(box.x - gx)), 0),
+            max(int(np.floor(box.y - gy)), 0),
+            min(int(np.ceil(box.x2 + gx)), 50),
+            min(int(np.ceil(box.y2 + gy)), 40),
+            x0,
+            y0,
+            x1,
+            y1,
+            2.0,
+        )
+        assert np.array_equal(got, ref)
