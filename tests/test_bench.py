@@ -139,9 +139,10 @@ def test_bench_random_rejects_bad_options(capsys):
 
 
 def test_the_cpu_rate_counts_only_the_trackers_own_work(scene, monkeypatch, tmp_path):
-    """A tracker that waits (a sleep: wall time, no CPU) 20 ms a frame: its tracking rate is at
-    most 50 frames/s, its rate in CPU time far higher; the waiting is what the reader and writer
-    threads cost a tracker beside them."""
+    """A tracker that waits (a sleep: wall time, no CPU) 20 ms on every frame after the first
+    (the first frame starts the engine, it is not a step): its tracking rate is at most
+    50 frames/s times frames / steps, its rate in CPU time far higher; the waiting is what the
+    reader and writer threads cost a tracker beside them."""
     import time
 
     from pipeline.run import RunOptions, run_track
@@ -164,4 +165,5 @@ def test_the_cpu_rate_counts_only_the_trackers_own_work(scene, monkeypatch, tmp_
 
     monkeypatch.setattr(base.CoreEngine, "step", waiting)
     s = run_track(scene("pole-fast"), opts).summary
-    assert s["fps_tracking"] <= 50 and s["fps_tracking_cpu"] > 3 * s["fps_tracking"]
+    n = s["frames"]
+    assert s["fps_tracking"] <= 50 * n / (n - 1) and s["fps_tracking_cpu"] > 3 * s["fps_tracking"]
