@@ -159,3 +159,73 @@ def test_scale_probe_reads_a_planted_growth_and_nothing_with_the_scale_filter_of
     assert wide["followed"] > 0.9 and wide["median_err"] < 0.05
     off = sp.probe(str(seq), sp._config(["scale_filter=0"]))
     assert off["followed"] == 0.0 and abs(off["found"] * grown - 1) < 0.02  # kept its first size
+
+
+def _detection_quality():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "detection_quality", ROOT / "tools" / "detection_quality.py"
+    )
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_detection_quality_classes_planted_boxes(tmp_path):
+    """Two targets and a distractor over three frames, with detections planted for each class:
+    the counts, the precision (a detection of the distractor left out) and the isolated recall
+    come out exactly."""
+    dq = _detection_quality()
+    # gt.txt: 1-based MOT rows (frame, id, x, y, w, h, conf, class, visibility)
+    gt = [
+        "1,1,11,11,10,20,1,1,1.0",  # A at (10, 10) 0-based
+        "1,2,51,11,10,20,1,1,1.0",  # B at (50, 10)
+        "2,1,11,11,10,20,1,1,1.0",
+        "2,2,20,11,10,20,1,1,1.0",  # B overlapping A by a pixel: neither is isolated
+        "2,1001,101,101,10,10,0,8,1.0",  # a distractor
+        "3,1,11,11,10,20,1,1,1.0",
+        "3,2,51,11,10,20,1,1,0.1",  # B hidden: not counted
+    ]
+    (tmp_path / "gt.txt").write_text("\n".join(gt) + "\n")
+    head = "frame,x_px,y_px,w_px,h_px,perimeter_px,accepted,reason\n"
+    rois = [
+        "1,10,11,10,19,60,1,ok",  # A covered
+        "1,50,10,10,8,40,1,ok",  # B: its top 40 %, a fragment
+        "1,200,200,10,10,40,0,too-small",  # refused: not a detection
+        "2,8,8,26,24,100,1,ok",  # one region holds A and B
+        "2,100,100,10,10,40,1,ok",  # on the distractor: out of the precision
+        "2,150,150,4,4,16,1,ok",  # under the tracker's perimeter: not a detection
+        "3,60,60,5,5,20,1,ok",  # A missed (nothing on it), a false detection
+    ]
+    (tmp_path / "rois.csv").write_text(head + "\n".join(rois) + "\n")
+    r = dq.score_scene(tmp_path, tmp_path / "rois.csv", 18.0, 0.25)
+    assert r["counts"] == {"covered": 1, "fragment": 1, "oversize-other": 2, "missed": 1}
+    # detections: frame 1 two (one on a target at IoU >= 0.5), frame 2 one, frame 3 one
+    assert (r["detections"], r["detections_on_target"]) == (4, 1)
+    # isolated visible: A and B in frame 1, A in frame 3; covered: A in frame 1
+    assert (r["isolated"], r["isolated_covered"]) == (3, 1)
+    s = dq.summarise([{**r, "ms_per_frame": 2.0}])
+    assert s["shares"]["covered"] == 0.2 and s["precision"] == 0.25
+    assert abs(sum(s["shares"].values()) - 1.0) < 1e-12
+
+
+def test_detection_quality_runs_on_a_random_scene(tmp_path):
+    """The tool detects on a generated development scene and writes its figures."""
+    run_tool(
+        "detection_quality.py",
+        "--seeds",
+        "3",
+        "--jobs",
+        "1",
+        "--out",
+        str(tmp_path),
+        "--json",
+        str(tmp_path / "q.json"),
+    )
+    q = json.loads((tmp_path / "q.json").read_text())
+    s = q["summary"]
+    assert s["scenes"] == 1 and s["target_frames"] > 200  # two or three targets, 200 frames
+    assert abs(sum(s["shares"].values()) - 1.0) < 1e-9
+    assert 0.2 < s["shares"]["covered"] < 1.0 and 0 < s["precision"] <= 1
+    assert s["ms_per_frame_median"] > 0
