@@ -161,14 +161,15 @@ def score_scene(scene: Path, rois: Path, min_perimeter_px: float, min_vis: float
     }
 
 
-def _job(args: tuple[str, str, float, float, bool]) -> dict:
-    scene_s, run_s, per, min_vis, force = args
+def _job(args: tuple[str, str, float, float, bool, tuple[str, ...]]) -> dict:
+    scene_s, run_s, per, min_vis, force, sets = args
     from pipeline.cli import main
 
     scene, run = Path(scene_s), Path(run_s)
     if force or not (run / "summary.json").is_file():
+        extra = [a for s in sets for a in ("--set", s)]
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-            main(["detect", str(scene), "--out", str(run), "--no-rrd", "--force"])
+            main(["detect", str(scene), "--out", str(run), "--no-rrd", "--force", *extra])
     summary = json.loads((run / "summary.json").read_text())
     r = score_scene(scene, run / "rois.csv", per, min_vis)
     r["scene"] = scene.name
@@ -201,13 +202,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--json", type=Path, help="also write the figures as JSON")
     ap.add_argument("--force", action="store_true", help="detect again (after a code change)")
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="PATH.PARAM=VALUE",
+        help="a detector parameter, as dualtrack detect's --set (repeatable; use a new --out or "
+        "--force, the detections of an earlier call are reused)",
+    )
     a = ap.parse_args(argv)
     lo, hi = (int(v) for v in a.targets.split("-")) if "-" in a.targets else (int(a.targets),) * 2
     scenes = random_scene_set(
         seeds=_seeds(a.seeds), targets=(lo, hi), out=a.out / "scenes", progress=False
     )
     per = load_config(None, []).detect.association.min_perimeter_px
-    jobs = [(str(s), str(a.out / "det" / s.name), per, a.min_visibility, a.force) for s in scenes]
+    jobs = [
+        (str(s), str(a.out / "det" / s.name), per, a.min_visibility, a.force, tuple(a.set))
+        for s in scenes
+    ]
     with ProcessPoolExecutor(max_workers=max(a.jobs, 1)) as pool:
         results = list(pool.map(_job, jobs))
     report = summarise(results)
