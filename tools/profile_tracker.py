@@ -3,11 +3,12 @@
 The tracker alone runs over frames decoded beforehand (no decoding, no sinks), once to warm
 up and once under ``cProfile``; each function's own time is charged to the part of the
 tracker its module belongs to (:data:`PARTS`), and counted as *compiled* when it is a C
-function (NumPy, SciPy, OpenCV) or a Numba kernel (each kernel is wrapped in a named Python
-function for the run, so its time is its own). The rest is the Python layer. One core (thread
-pools of one, as ``dualtrack bench``). Profiling adds its own cost to every Python call, so the
-Python share here is an upper bound; the total is
-also printed as the unprofiled CPU time of the same loop.
+function (NumPy, SciPy, OpenCV) or a Numba kernel (Numba shows a compiled call to the profiler
+as a call of the kernel's Python function, which is recognised; each kernel is also wrapped in a
+named Python function for the run, so its time is its own). The rest is the Python layer. One
+core (thread pools of one, as ``dualtrack bench``). Profiling adds its own cost to every Python
+call, so the Python share here is an upper bound; the total is also printed as the unprofiled
+CPU time of the same loop.
 
 Usage::
 
@@ -53,6 +54,23 @@ def _part_of(filename: str) -> str | None:
         if any(fr in f for fr in frags):
             return part
     return None
+
+
+def _kernel_keys() -> set[tuple[str, int, str]]:
+    """``(file, first line, name)`` of every Numba kernel's Python function in the pipeline's
+    modules: Numba (0.59 and later) shows a compiled call to the profiler as a call of that
+    function, so its time is listed under the kernel's own source and counts as compiled."""
+    import numba.core.registry
+
+    keys = set()
+    for name, mod in list(sys.modules.items()):
+        if not name.startswith("pipeline") or mod is None:
+            continue
+        for obj in vars(mod).values():
+            if isinstance(obj, numba.core.registry.CPUDispatcher):
+                code = obj.py_func.__code__
+                keys.add((code.co_filename, code.co_firstlineno, code.co_name))
+    return keys
 
 
 def _wrap_kernels() -> list[tuple[object, str, object]]:
@@ -121,14 +139,20 @@ def profile(seq_dir: Path, tracker: str, frames: int | None) -> dict[str, object
         for mod, attr, obj in undo:
             setattr(mod, attr, obj)
     n = len(pairs) - 1
-    return {"frames": n, "cpu_ms": 1000 * cpu / n, "parts": _charge(prof, n)}
+    return {"frames": n, "cpu_ms": 1000 * cpu / n, "parts": _charge(prof, n, _kernel_keys())}
 
 
-def _charge(prof: cProfile.Profile, n: int) -> dict[str, tuple[float, float]]:
+def _charge(
+    prof: cProfile.Profile, n: int, kernels: set[tuple[str, int, str]] = frozenset()
+) -> dict[str, tuple[float, float]]:
     st = pstats.Stats(prof)
     own: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
     for (filename, _line, _name), (_cc, _nc, tt, _ct, callers) in st.stats.items():  # type: ignore[attr-defined]
-        compiled = filename == "~" or filename.startswith("<compiled ")
+        compiled = (
+            filename == "~"
+            or filename.startswith("<compiled ")
+            or (filename, _line, _name) in kernels
+        )
         part = _part_of(filename)
         if part is None and filename == "~":  # a C function: the part of its callers
             by = defaultdict(float)
