@@ -199,6 +199,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--targets", default="2-3", help="targets per scene, K or A-B (default 2-3)")
     ap.add_argument("--out", type=Path, default=Path("runs/detection-quality"))
     ap.add_argument("--min-visibility", type=float, default=0.25)
+    ap.add_argument(
+        "--size", default="320x240", help="WxH of the generated scenes (default 320x240)"
+    )
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--json", type=Path, help="also write the figures as JSON")
     ap.add_argument("--force", action="store_true", help="detect again (after a code change)")
@@ -212,8 +215,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     a = ap.parse_args(argv)
     lo, hi = (int(v) for v in a.targets.split("-")) if "-" in a.targets else (int(a.targets),) * 2
+    w, _, h = a.size.partition("x")
     scenes = random_scene_set(
-        seeds=_seeds(a.seeds), targets=(lo, hi), out=a.out / "scenes", progress=False
+        seeds=_seeds(a.seeds),
+        targets=(lo, hi),
+        out=a.out / "scenes",
+        size=(int(w), int(h)),
+        progress=False,
     )
     per = load_config(None, []).detect.association.min_perimeter_px
     jobs = [
