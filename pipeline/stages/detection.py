@@ -613,17 +613,18 @@ def grow(core: np.ndarray, weak: np.ndarray) -> np.ndarray:
     two people would join them."""
     if not weak.any():
         return core
-    n, comp = cv2.connectedComponents(weak | core, connectivity=8)
     m, cores, stats, _ = cv2.connectedComponentsWithStats(core, connectivity=8)
     if m <= 1:
         return core
+    n, comp, wstats, _ = cv2.connectedComponentsWithStats(weak | core, connectivity=8)
     area = stats[1:, cv2.CC_STAT_AREA].astype(float)
-    # the weak component holding every core (read at one pixel of each)
-    flat = cores.ravel()
-    idx = np.flatnonzero(flat)
-    pixel = np.zeros(m, np.int64)
-    pixel[flat[idx]] = idx
-    owner = comp.ravel()[pixel[1:]]
+    # the weak component holding every core, read at one pixel of each: the first of its box's top
+    # row (every pixel of a core lies in one weak component)
+    owner = np.empty(m - 1, np.int64)
+    for k in range(1, m):
+        x, y, w = (int(v) for v in stats[k, :3])
+        j = int(np.argmax(cores[y, x : x + w] == k))
+        owner[k - 1] = comp[y, x + j]
     largest = np.zeros(n)
     np.maximum.at(largest, owner, area)
     bodies = np.zeros(n, int)
@@ -634,7 +635,12 @@ def grow(core: np.ndarray, weak: np.ndarray) -> np.ndarray:
     grown[0] = False
     # the grown part without the blur skirt around every core (a ring of a pixel or two that the
     # weaker threshold adds all round): an opening keeps legs and wheels, drops the ring
-    extra = (grown[comp] & (core == 0)).astype(np.uint8)
+    # (written inside each grown component's box only: the rest of the frame stays 0)
+    extra = np.zeros(core.shape, np.uint8)
+    for label in np.flatnonzero(grown):
+        x, y, w, h = (int(v) for v in wstats[label, :4])
+        box = (slice(y, y + h), slice(x, x + w))
+        extra[box] |= ((comp[box] == label) & (core[box] == 0)).astype(np.uint8)
     extra = cv2.morphologyEx(extra, cv2.MORPH_OPEN, _ellipse(SKIRT_PX))
     return ((extra > 0) | (core > 0)).astype(np.uint8)
 
