@@ -440,10 +440,18 @@ def _phase_surface(ref: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, int]:
     win = _hann_window(h, w)
     fa = cv2.dft((a - float(a.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
     fb = cv2.dft((b - float(b.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
-    cross = cv2.mulSpectrums(fb, fa, 0, conjB=True)
-    mag = cv2.magnitude(cross[..., 0], cross[..., 1])
-    cross /= np.maximum(mag, 1e-9)[..., None]
+    cross = _unit(cv2.mulSpectrums(fb, fa, 0, conjB=True))
     return cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE), f
+
+
+def _unit(cross: np.ndarray) -> np.ndarray:
+    """A (H, W, 2) spectrum divided by its magnitude, in place. The magnitude is numpy's:
+    ``cv2.magnitude`` rounds differently with the alignment of its arrays in memory, which
+    changed the registration, the background and the detections from one run to the next."""
+    re, im = cross[..., 0], cross[..., 1]
+    mag = np.sqrt(re * re + im * im)
+    cross /= np.maximum(mag, 1e-9)[..., None]
+    return cross
 
 
 def _peak_shift(r: np.ndarray, f: int, max_px: float) -> tuple[float, float]:
