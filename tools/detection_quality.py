@@ -38,15 +38,17 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import csv
 import io
 import json
 import os
+import sys
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # mot_peers, beside this file
 
 CLASSES = ("covered", "fragment", "oversize", "off", "missed")
 Box = tuple[float, float, float, float]
@@ -115,16 +117,14 @@ def _truth(scene: Path) -> dict[int, list[tuple[int, Box, float, bool]]]:
 
 
 def _detections(rois: Path, min_perimeter_px: float) -> dict[int, list[Box]]:
-    """frame -> 0-based boxes of the regions the ``detect`` tracker uses."""
+    """frame -> 0-based boxes of the regions the ``detect`` tracker uses (as the peers get them,
+    :func:`mot_peers.tracker_regions`)."""
+    from mot_peers import tracker_regions
+
     out: dict[int, list[Box]] = {}
-    with rois.open() as f:
-        for r in csv.DictReader(f):
-            if r["accepted"] != "1" or r["reason"] != "ok":
-                continue
-            if float(r["perimeter_px"]) < min_perimeter_px:
-                continue
-            box = tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
-            out.setdefault(int(r["frame"]), []).append(box)  # type: ignore[arg-type]
+    for r in tracker_regions(rois, min_perimeter_px):
+        box = tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
+        out.setdefault(int(r["frame"]), []).append(box)  # type: ignore[arg-type]
     return out
 
 

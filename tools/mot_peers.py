@@ -29,6 +29,7 @@ import io
 import json
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -37,20 +38,25 @@ ROOT = Path(__file__).resolve().parents[1]
 PEERS = ("bytetrack", "ocsort", "sort")
 
 
+def tracker_regions(rois: Path, min_perimeter_px: float) -> Iterator[dict[str, str]]:
+    """The ``rois.csv`` rows of the regions the ``detect`` tracker uses: accepted IR regions
+    (reason ``ok``) of at least ``min_perimeter_px`` boundary."""
+    with rois.open() as f:
+        for r in csv.DictReader(f):
+            if r["accepted"] == "1" and r["reason"] == "ok":
+                if float(r["perimeter_px"]) >= min_perimeter_px:
+                    yield r
+
+
 def _dets(rois: Path, min_perimeter_px: float) -> list[str]:
     """``det.txt`` rows (1-based) of the regions the ``detect`` tracker uses (the score of
     ``rois.csv``; ``1 / C2`` for files written before it had one)."""
     rows = []
-    with rois.open() as f:
-        for r in csv.DictReader(f):
-            if r["accepted"] != "1" or r["reason"] != "ok":
-                continue
-            if float(r["perimeter_px"]) < min_perimeter_px:
-                continue
-            x, y, w, h = (float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
-            shape = min(1.0, 1.0 / max(float(r["c2"]), 1.0))
-            conf = float(r["score"]) if r.get("score") else shape
-            rows.append(f"{r['frame']},-1,{x + 1:.2f},{y + 1:.2f},{w:.2f},{h:.2f},{conf:.3f}")
+    for r in tracker_regions(rois, min_perimeter_px):
+        x, y, w, h = (float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
+        shape = min(1.0, 1.0 / max(float(r["c2"]), 1.0))
+        conf = float(r["score"]) if r.get("score") else shape
+        rows.append(f"{r['frame']},-1,{x + 1:.2f},{y + 1:.2f},{w:.2f},{h:.2f},{conf:.3f}")
     return rows
 
 
