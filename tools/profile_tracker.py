@@ -4,11 +4,10 @@ The tracker alone runs over frames decoded beforehand (no decoding, no sinks), o
 up and once under ``cProfile``; each function's own time is charged to the part of the
 tracker its module belongs to (:data:`PARTS`), and counted as *compiled* when it is a C
 function (NumPy, SciPy, OpenCV) or a Numba kernel (Numba shows a compiled call to the profiler
-as a call of the kernel's Python function, which is recognised; each kernel is also wrapped in a
-named Python function for the run, so its time is its own). The rest is the Python layer. One
-core (thread pools of one, as ``dualtrack bench``). Profiling adds its own cost to every Python
-call, so the Python share here is an upper bound; the total is also printed as the unprofiled
-CPU time of the same loop.
+as a call of the kernel's Python function, with the kernel's own time). The rest is the Python
+layer. One core (thread pools of one, as ``dualtrack bench``). Profiling adds its own cost to
+every Python call, so the Python share here is an upper bound; the total is also printed as the
+unprofiled CPU time of the same loop.
 
 Usage::
 
@@ -58,8 +57,9 @@ def _part_of(filename: str) -> str | None:
 
 def _kernel_keys() -> set[tuple[str, int, str]]:
     """``(file, first line, name)`` of every Numba kernel's Python function in the pipeline's
-    modules: Numba (0.59 and later) shows a compiled call to the profiler as a call of that
-    function, so its time is listed under the kernel's own source and counts as compiled."""
+    modules: Numba (0.59 and later, the project's floor) shows a compiled call to the profiler
+    as a call of that function, so its time is listed under the kernel's own source and counts
+    as compiled."""
     import numba.core.registry
 
     keys = set()
@@ -71,27 +71,6 @@ def _kernel_keys() -> set[tuple[str, int, str]]:
                 code = obj.py_func.__code__
                 keys.add((code.co_filename, code.co_firstlineno, code.co_name))
     return keys
-
-
-def _wrap_kernels() -> list[tuple[object, str, object]]:
-    """Replace every Numba dispatcher in the pipeline's modules by a Python function named
-    ``<kernel>`` defined in that module (so cProfile sees the kernel's time as one call);
-    returns what to put back."""
-    import numba.core.registry
-
-    undo = []
-    for name, mod in list(sys.modules.items()):
-        if not name.startswith("pipeline") or mod is None:
-            continue
-        for attr, obj in list(vars(mod).items()):
-            if isinstance(obj, numba.core.registry.CPUDispatcher):
-                src = f"def {attr}(*a, **k):\n    return _kernel(*a, **k)\n"
-                ns = {"_kernel": obj}
-                code = compile(src, f"<compiled {mod.__file__}>", "exec")
-                exec(code, ns)
-                setattr(mod, attr, ns[attr])
-                undo.append((mod, attr, obj))
-    return undo
 
 
 def _engine(seq: object, tracker: str) -> object:
@@ -126,18 +105,13 @@ def profile(seq_dir: Path, tracker: str, frames: int | None) -> dict[str, object
     for p in pairs[1:]:
         engine.step(p)  # type: ignore[attr-defined]
     cpu = time.process_time() - c0
-    undo = _wrap_kernels()
-    try:
-        engine = _engine(seq, tracker)
-        engine.start(pairs[0], targets)  # type: ignore[attr-defined]
-        prof = cProfile.Profile()
-        prof.enable()
-        for p in pairs[1:]:
-            engine.step(p)  # type: ignore[attr-defined]
-        prof.disable()
-    finally:
-        for mod, attr, obj in undo:
-            setattr(mod, attr, obj)
+    engine = _engine(seq, tracker)
+    engine.start(pairs[0], targets)  # type: ignore[attr-defined]
+    prof = cProfile.Profile()
+    prof.enable()
+    for p in pairs[1:]:
+        engine.step(p)  # type: ignore[attr-defined]
+    prof.disable()
     n = len(pairs) - 1
     return {"frames": n, "cpu_ms": 1000 * cpu / n, "parts": _charge(prof, n, _kernel_keys())}
 
@@ -148,11 +122,7 @@ def _charge(
     st = pstats.Stats(prof)
     own: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
     for (filename, _line, _name), (_cc, _nc, tt, _ct, callers) in st.stats.items():  # type: ignore[attr-defined]
-        compiled = (
-            filename == "~"
-            or filename.startswith("<compiled ")
-            or (filename, _line, _name) in kernels
-        )
+        compiled = filename == "~" or (filename, _line, _name) in kernels
         part = _part_of(filename)
         if part is None and filename == "~":  # a C function: the part of its callers
             by = defaultdict(float)
@@ -163,8 +133,6 @@ def _charge(
                 own[p][0] += tt * t / total
                 own[p][1] += tt * t / total
             continue
-        if filename.startswith("<compiled "):
-            part = _part_of(filename[len("<compiled ") :]) or "glue"
         part = part or "glue"
         own[part][0] += tt
         if compiled:
