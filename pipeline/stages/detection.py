@@ -28,6 +28,7 @@ import enum
 import functools
 import math
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -379,7 +380,12 @@ def registration(
     displacement does. A camera that moved by more than the search, or a view with no texture,
     is not noticed.
     """
-    r, f = _phase_surface(ref, img)
+    return _registration(_view(ref), _view(img), max_px)
+
+
+def _registration(ref: _View, img: _View, max_px: float) -> tuple[tuple[float, float], bool]:
+    """:func:`registration` of two prepared views."""
+    r, f = _surface(ref, img)
     shift = _peak_shift(r, f, max_px)
     h, w = r.shape
     k = max(min(round(VIEW_SEARCH_FRACTION * min(ref.shape) / f), h // 2 - 1, w // 2 - 1), 1)
@@ -391,10 +397,9 @@ def registration(
     lags = [(x, y) for x, y in lags if max(abs(x), abs(y)) * f > max_px]
     if not lags:
         return shift, False
-    a, b = _at_factor(ref, f), _at_factor(img, f)
-    near = _residual(a, b, shift[0] / f, shift[1] / f)
-    best = min(_residual(a, b, x, y) for x, y in lags)
-    return shift, bool(best < VIEW_RESIDUAL_RATIO * near)
+    a, b = ref.small, img.small
+    bound = VIEW_RESIDUAL_RATIO * _residual(a, b, shift[0] / f, shift[1] / f)
+    return shift, any(_residual_below(a, b, x, y, bound) for x, y in lags)
 
 
 VIEW_PEAKS = 5
@@ -405,21 +410,36 @@ VIEW_RESIDUAL_RATIO = 0.75
 """:func:`registration`'s share of the residual a displacement beyond ``max_px`` must reach."""
 
 
-def _at_factor(a: np.ndarray, f: int) -> np.ndarray:
-    a = a.astype(np.float32)
-    if f == 1:
-        return a
-    return cv2.resize(a, (a.shape[1] // f, a.shape[0] // f), interpolation=cv2.INTER_AREA)
+def _shared(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """``|b - a|`` with ``b`` carried by ``(dx, dy)`` (rounded), over the pixels both cover."""
+    h, w = a.shape
+    x, y = round(dx), round(dy)
+    sa = a[max(-y, 0) : h - max(y, 0), max(-x, 0) : w - max(x, 0)]
+    sb = b[max(y, 0) : h - max(-y, 0), max(x, 0) : w - max(-x, 0)]
+    return np.abs(sb - sa)
 
 
 def _residual(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> float:
     """Median absolute difference of ``b`` and ``a`` carried by ``(dx, dy)`` (rounded), over the
     pixels both cover."""
-    h, w = a.shape
-    x, y = round(dx), round(dy)
-    sa = a[max(-y, 0) : h - max(y, 0), max(-x, 0) : w - max(x, 0)]
-    sb = b[max(y, 0) : h - max(-y, 0), max(x, 0) : w - max(-x, 0)]
-    return float(np.median(np.abs(sb - sa))) if sa.size else float("inf")
+    d = _shared(a, b, dx, dy)
+    return float(np.median(d)) if d.size else float("inf")
+
+
+def _residual_below(a: np.ndarray, b: np.ndarray, dx: float, dy: float, bound: float) -> bool:
+    """Whether ``_residual(a, b, dx, dy) < bound``, exactly, by counting the differences under
+    ``bound`` instead of sorting them (a median is under the bound when more than half of the
+    values are; an even count's two middle values straddling it are averaged as ``np.median``
+    does)."""
+    d = _shared(a, b, dx, dy)
+    n = d.size
+    if n == 0:
+        return False
+    below = int(np.count_nonzero(d < np.float64(bound)))
+    m = n // 2
+    if n % 2 or below != m:
+        return below > m
+    return float(np.median(d)) < bound
 
 
 def _lags(r: np.ndarray, k: int) -> np.ndarray:
@@ -427,21 +447,38 @@ def _lags(r: np.ndarray, k: int) -> np.ndarray:
     return np.roll(np.roll(r, k, axis=0), k, axis=1)[: 2 * k + 1, : 2 * k + 1]
 
 
+class _View(NamedTuple):
+    """A frame prepared for phase correlation: the frame at the correlation's resolution
+    (float32), its Hann-windowed spectrum, the resolution's factor and the frame's own shape."""
+
+    small: np.ndarray
+    spectrum: np.ndarray
+    factor: int
+    shape: tuple[int, int]
+
+
+def _view(grey: np.ndarray) -> _View:
+    """``grey`` prepared for :func:`_surface`: at half resolution when its shorter side is at
+    least 200 px."""
+    f = 2 if min(grey.shape) >= 200 else 1
+    a = grey.astype(np.float32)
+    if f > 1:
+        a = cv2.resize(a, (a.shape[1] // f, a.shape[0] // f), interpolation=cv2.INTER_AREA)
+    h, w = a.shape
+    spec = cv2.dft((a - float(a.mean())) * _hann_window(h, w), flags=cv2.DFT_COMPLEX_OUTPUT)
+    return _View(a, spec, f, grey.shape[:2])
+
+
+def _surface(ref: _View, img: _View) -> tuple[np.ndarray, int]:
+    """The phase correlation surface of two prepared views of one size, and their factor."""
+    cross = _unit(cv2.mulSpectrums(img.spectrum, ref.spectrum, 0, conjB=True))
+    return cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE), ref.factor
+
+
 def _phase_surface(ref: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, int]:
     """The phase correlation surface of ``ref`` and ``img`` (Hann-windowed, at half resolution
     when the shorter side is at least 200 px) and that factor."""
-    f = 2 if min(ref.shape) >= 200 else 1
-    a = ref.astype(np.float32)
-    b = img.astype(np.float32)
-    if f > 1:
-        a = cv2.resize(a, (a.shape[1] // f, a.shape[0] // f), interpolation=cv2.INTER_AREA)
-        b = cv2.resize(b, (a.shape[1], a.shape[0]), interpolation=cv2.INTER_AREA)
-    h, w = a.shape
-    win = _hann_window(h, w)
-    fa = cv2.dft((a - float(a.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
-    fb = cv2.dft((b - float(b.mean())) * win, flags=cv2.DFT_COMPLEX_OUTPUT)
-    cross = _unit(cv2.mulSpectrums(fb, fa, 0, conjB=True))
-    return cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE), f
+    return _surface(_view(ref), _view(img))
 
 
 def _unit(cross: np.ndarray) -> np.ndarray:
@@ -501,13 +538,13 @@ def quantile_background(
     """
     if not greys:
         raise ValueError("quantile_background needs at least one frame")
-    ref = greys[0].astype(np.float32)
-    reg = [registration(ref, g, cfg.max_shift_px) for g in greys[1:]]
+    views = [_view(g) for g in greys]  # each frame's spectrum once, for both registrations
+    reg = [_registration(views[0], v, cfg.max_shift_px) for v in views[1:]]
     shifts = [(0.0, 0.0)] + [s if cfg.max_shift_px > 0 else (0.0, 0.0) for s, _ in reg]
     # a sample moved when seen from elsewhere than the first, or than the sample before it (a
     # pan soon leaves the first view's search)
     moved = [
-        m or registration(greys[i], greys[i + 1], cfg.max_shift_px)[1]
+        m or _registration(views[i], views[i + 1], cfg.max_shift_px)[1]
         for i, (_, m) in enumerate(reg)
     ]
     stack = np.stack(

@@ -437,3 +437,25 @@ def test_the_cross_power_spectrum_does_not_depend_on_where_it_lies_in_memory():
     expected = cross / np.maximum(np.sqrt(re * re + im * im), np.float32(1e-9))[..., None]
     assert _unit(cross.copy()).tobytes() == expected.astype(np.float32).tobytes()
     np.testing.assert_allclose(np.hypot(*np.moveaxis(_unit(cross), -1, 0)), 1.0, rtol=1e-5)
+
+
+@pytest.mark.parametrize("shape", [(9, 11), (10, 12), (1, 2)])
+def test_the_counted_residual_test_agrees_with_the_median(shape):
+    """``_residual_below`` (counting the differences under the bound) answers exactly as the
+    median compared with the bound, at bounds on either side of it, on it, and between an even
+    count's two middle values."""
+    from pipeline.stages.detection import _residual, _residual_below, _shared
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        a = rng.integers(0, 8, shape).astype(np.float32) / 4  # ties, as area-averaged greys
+        b = rng.integers(0, 8, shape).astype(np.float32) / 4
+        for dx, dy in ((0, 0), (1, 0), (-2, 1), (0, 40)):
+            med = _residual(a, b, dx, dy)
+            d = np.sort(_shared(a, b, dx, dy).ravel())
+            bounds = {med, float(np.nextafter(med, np.inf)), med - 0.25, med + 0.25}
+            if d.size % 2 == 0 and d.size:
+                bounds.add(float(0.5 * (d[d.size // 2 - 1] + d[d.size // 2])) + 1e-3)
+            for bound in bounds:
+                assert _residual_below(a, b, dx, dy, bound) == (med < bound), (dx, dy, bound)
+    assert _residual_below(a, b, 0, 40, float("inf")) is False  # no shared pixels
