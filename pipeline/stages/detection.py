@@ -300,14 +300,39 @@ def _hann_window(h: int, w: int) -> np.ndarray:
     return cv2.createHanningWindow((w, h), cv2.CV_32F)
 
 
+def median(a: np.ndarray) -> float:
+    """``float(np.median(a))`` of a finite array, bit for bit, in a quarter of the time or less.
+
+    numpy 2 partitions around one index in its vectorised select, and around the two middle
+    indices ``np.median`` asks for in a generic one about ten times slower (0.22 ms against 0.02
+    for 19,000 float32 values); the lower middle value of an even count is the largest value
+    before the upper one, and the two are averaged as ``np.median`` averages them (their mean in
+    the array's own type). NaN is not looked for: ``a`` holds finite values.
+
+    Examples
+    --------
+    >>> median(np.array([3.0, 1.0, 2.0, 10.0], np.float32)), median(np.array([5, 1, 4]))
+    (2.5, 4.0)
+    """
+    f = np.ravel(a)
+    n = f.size
+    if n == 0:
+        return float("nan")
+    m = n // 2
+    p = np.partition(f, m)
+    if n % 2:
+        return float(p[m])
+    return float(np.mean(np.array([p[:m].max(), p[m]], dtype=p.dtype)))
+
+
 def robust_level(a: np.ndarray, values: int = 4096) -> tuple[float, float]:
     """(median, 1.4826 x median absolute deviation) of ``a`` over a regular grid of about
     ``values`` of its values (4096 by default), whatever its size: a level and a deviation that
     targets and edges covering part of the frame do not move."""
     step = max(1, int(np.sqrt(a.size / values)))
     sub = a[::step, ::step].ravel()
-    med = float(np.median(sub))
-    return med, 1.4826 * float(np.median(np.abs(sub - med)))
+    med = median(sub)
+    return med, 1.4826 * median(np.abs(sub - med))
 
 
 def foreground_share(
@@ -423,13 +448,13 @@ def _residual(a: np.ndarray, b: np.ndarray, dx: float, dy: float) -> float:
     """Median absolute difference of ``b`` and ``a`` carried by ``(dx, dy)`` (rounded), over the
     pixels both cover."""
     d = _shared(a, b, dx, dy)
-    return float(np.median(d)) if d.size else float("inf")
+    return median(d) if d.size else float("inf")
 
 
 def _residual_below(a: np.ndarray, b: np.ndarray, dx: float, dy: float, bound: float) -> bool:
     """Whether ``_residual(a, b, dx, dy) < bound``, exactly, by counting the differences under
     ``bound`` instead of sorting them (a median is under the bound when more than half of the
-    values are; an even count's two middle values straddling it are averaged as ``np.median``
+    values are; an even count's two middle values straddling it are averaged as :func:`median`
     does)."""
     d = _shared(a, b, dx, dy)
     n = d.size
@@ -439,7 +464,7 @@ def _residual_below(a: np.ndarray, b: np.ndarray, dx: float, dy: float, bound: f
     m = n // 2
     if n % 2 or below != m:
         return below > m
-    return float(np.median(d)) < bound
+    return median(d) < bound
 
 
 def _lags(r: np.ndarray, k: int) -> np.ndarray:
@@ -724,7 +749,7 @@ def visible_foreground(lab: np.ndarray, bg: np.ndarray, cfg: DetectionConfig) ->
     not foreground."""
     L, Lb = lab[..., 0], bg[..., 0]
     step = max(1, int(np.sqrt(L.size / 4096)))
-    gain = float(np.median(L[::step, ::step] / np.maximum(Lb[::step, ::step], 1.0)))
+    gain = median(L[::step, ::step] / np.maximum(Lb[::step, ::step], 1.0))
     dL = L - gain * Lb
     dc = np.sqrt((lab[..., 1] - bg[..., 1]) ** 2 + (lab[..., 2] - bg[..., 2]) ** 2)
 
@@ -1076,7 +1101,7 @@ def _region_contrast(diff: np.ndarray, r: Region, med: float, sigma: float) -> f
     pts = np.round(r.contour - 0.5).astype(np.int32) - np.int32([x0, y0])
     cv2.drawContours(m, [pts.reshape(-1, 1, 2)], -1, 1, thickness=cv2.FILLED)
     vals = crop[m > 0]
-    return (float(np.median(vals)) - med) / sigma if vals.size else float("nan")
+    return (median(vals) - med) / sigma if vals.size else float("nan")
 
 
 def _unpad(r: Region, window_px: int) -> Region:

@@ -459,3 +459,21 @@ def test_the_counted_residual_test_agrees_with_the_median(shape):
             for bound in bounds:
                 assert _residual_below(a, b, dx, dy, bound) == (med < bound), (dx, dy, bound)
     assert _residual_below(a, b, 0, 40, float("inf")) is False  # no shared pixels
+
+
+def test_the_median_equals_numpy_s_bit_for_bit():
+    """``median`` (one-index partition) returns ``np.median``'s value to the last bit on odd and
+    even counts, ties, float32, float64 and integers, and NaN on an empty array."""
+    from pipeline.stages.detection import median
+
+    rng = np.random.default_rng(11)
+    for t in range(600):
+        n = int(rng.integers(1, 80))
+        dtype = (np.float32, np.float64, np.uint8)[t % 3]
+        a = rng.normal(0, 10 ** float(rng.uniform(-6, 6)), n)
+        if t % 4 == 0:
+            a = np.round(a * 4) / 4  # ties
+        a = np.abs(a).astype(dtype) if dtype is np.uint8 else a.astype(dtype)
+        got, want = median(a.reshape(1, -1) if t % 5 == 0 else a), float(np.median(a))
+        assert got == want, (dtype, n, got, want)
+    assert np.isnan(median(np.zeros(0, np.float32)))
