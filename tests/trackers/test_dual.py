@@ -415,3 +415,59 @@ def test_the_stages_candidate_boxes_are_apart_from_the_targets_own(scene, tmp_pa
         assert r["Boxes2D:labels"] == [f"T1 {stage}"] and not r.get("Boxes2D:class_ids")
         rgb = tuple(int(r["Boxes2D:colors"][0]) >> s & 255 for s in (24, 16, 8))
         assert rgb == OVERLAY_COLORS[stage]
+
+
+_NEW_SIGNATURES = """
+import sys
+import numba.core.registry
+from pipeline.config import PipelineConfig
+from pipeline.io.init import resolve_init
+from pipeline.io.sequence import open_sequence
+from pipeline.trackers import make_tracker
+from pipeline.trackers.base import attach_sequence
+
+def signatures():
+    return {
+        (name, k, str(s))
+        for name, mod in list(sys.modules.items())
+        if name.startswith("pipeline") and mod is not None
+        for k, obj in list(vars(mod).items())
+        if isinstance(obj, numba.core.registry.CPUDispatcher)
+        for s in obj.signatures
+    }
+
+seq = open_sequence(sys.argv[2])
+for tracker in sys.argv[1].split(","):
+    engine = make_tracker(tracker, PipelineConfig())
+    attach_sequence(engine, seq)
+    before = signatures()
+    pairs = seq.frames(1, None)
+    engine.start(next(pairs), resolve_init(seq, None))
+    for p in pairs:
+        engine.step(p)
+    for name, k, s in sorted(signatures() - before):
+        print(tracker, name, k, s)
+"""
+
+
+def test_no_kernel_is_compiled_or_loaded_after_the_engine_is_built(scene):
+    """Every numba kernel an engine calls on a sequence (an occlusion and its whole-frame search
+    included) is compiled or loaded when the engine is built, not on the first timed frames: a
+    fresh process running the engines adds no kernel signature (the mean-shift loop used to
+    load on the first frame, 7 ms counted as tracking time)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            _NEW_SIGNATURES,
+            "dual,meanshift,kalman-camshift",
+            scene("occluder"),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert out.stdout == ""

@@ -13,7 +13,7 @@ from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app_stage
 from pipeline.stages import contour as contour_stage
 from pipeline.stages import extent as extent_stage
-from pipeline.stages import histogram as histogram_stage
+from pipeline.stages import meanshift as meanshift_stage
 from pipeline.stages import model_update as model_update_stage
 from pipeline.stages.contour import ContourResult
 from pipeline.stages.detection import DetectionConfig
@@ -148,7 +148,7 @@ class Dual:
     def warm_up(self) -> None:
         """Compile or load the parts' numba kernels once per process, so that the first timed
         frame does not pay for them."""
-        histogram_stage.warm_up()
+        meanshift_stage.warm_up()  # and the histogram loops
         contour_stage.warm_up()
         extent_stage.warm_up()
         model_update_stage.warm_up()
