@@ -1,12 +1,25 @@
-"""Compiled helpers over label images (``cv2.connectedComponents``' output), shared by the stages
-that pick components: the colour extent and the IR contour."""
+"""Connected components and compiled helpers over their label images, shared by the stages
+that pick components: the colour extent, the IR contour and the detector."""
 
 from __future__ import annotations
 
 from functools import cache
 
+import cv2
 import numba
 import numpy as np
+
+
+def components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """``cv2.connectedComponentsWithStats(mask, connectivity=8)``: (count with the background,
+    int32 labels, stats, centroids), by Grana's block-based algorithm.
+
+    The same labels, statistics and centroids as OpenCV's default for 8-connectivity (Spaghetti,
+    which numbers the components in the same block-scan order; tested equal), which gathers the
+    statistics two to three times slower in OpenCV 5 (a 640 x 480 mask: 1.6 ms against 0.86; an
+    80 x 60 one: 27 us against 10).
+    """
+    return cv2.connectedComponentsWithStatsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
 
 
 @numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")

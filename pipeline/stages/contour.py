@@ -31,7 +31,7 @@ import numpy as np
 
 from pipeline.params import Section, param
 from pipeline.stages import levelset
-from pipeline.stages._labels import counts_in_rect, select_labels
+from pipeline.stages._labels import components, counts_in_rect, select_labels
 from pipeline.stages._labels import warm_up as labels_warm_up
 from pipeline.stages.levelset import LevelSetConfig, box_step, edge_map, evolve
 from pipeline.types import BBox, Points
@@ -372,7 +372,7 @@ def extract_contour(
     phi = res.phi
     mem = LevelSetMemory(phi, (x0, y0))
     mask = (phi < 0).astype(np.uint8)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    n, labels, stats, _ = components(mask)
     comps = [
         BBox(
             float(stats[i, 0] + x0),

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from pipeline.params import Section, param
+from pipeline.stages._labels import components
 from pipeline.types import BBox
 
 
@@ -687,10 +688,10 @@ def grow(core: np.ndarray, weak: np.ndarray) -> np.ndarray:
     two people would join them."""
     if not weak.any():
         return core
-    m, cores, stats, _ = cv2.connectedComponentsWithStats(core, connectivity=8)
+    m, cores, stats, _ = components(core)
     if m <= 1:
         return core
-    n, comp, wstats, _ = cv2.connectedComponentsWithStats(weak | core, connectivity=8)
+    n, comp, wstats, _ = components(weak | core)
     area = stats[1:, cv2.CC_STAT_AREA].astype(float)
     # the weak component holding every core, read at one pixel of each: the first of its box's top
     # row (every pixel of a core lies in one weak component)
@@ -893,9 +894,7 @@ def split_touching(
         local = np.zeros((h + 2, w + 2), np.uint8)
         cv2.drawContours(local, [c], -1, 1, thickness=cv2.FILLED, offset=(1 - x, 1 - y))
         dist = cv2.distanceTransform(local, cv2.DIST_L2, 5)
-        n, lab, stats, _ = cv2.connectedComponentsWithStats(
-            (dist > core_fraction * dist.max()).astype(np.uint8), connectivity=8
-        )
+        n, lab, stats, _ = components((dist > core_fraction * dist.max()).astype(np.uint8))
         cores = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_core_px]
         if len(cores) < 2:
             out.append(c)

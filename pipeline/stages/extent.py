@@ -34,7 +34,7 @@ import numba
 import numpy as np
 
 from pipeline.params import Section, param
-from pipeline.stages._labels import counts_in_rect, label_profiles
+from pipeline.stages._labels import components, counts_in_rect, label_profiles
 from pipeline.stages._labels import warm_up as labels_warm_up
 from pipeline.types import BBox
 
@@ -229,7 +229,7 @@ def colour_extent(bins: np.ndarray, q: np.ndarray, box: BBox, cfg: ExtentConfig)
         pad, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
     )[k:-k, k:-k]
     mask = np.ascontiguousarray(mask)
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    n, lab, stats, _ = components(mask)
     if n < 2:
         return None
     # the component holding most of the target's pixels inside the current box
