@@ -23,7 +23,7 @@ import numpy as np
 
 from pipeline.config import config_to_dict, load_config
 from pipeline.io.sequence import FramePair, open_sequence
-from pipeline.stages.detection import Detections, detect, to_grey
+from pipeline.stages.detection import Detections, detect, to_grey, warm_up
 
 DETECT_FILES = ("det.txt", "rois.csv", "detections.rrd", "summary.json")
 
@@ -130,6 +130,7 @@ def run_detect(
     from pipeline.io.background import camera_warning, sequence_background
 
     source = sequence_background(seq, ch, cfg.detect.detection)
+    warm_up()  # the kernels loaded before the first timed frame
     background = [None]
     bg_s = [0.0]
 

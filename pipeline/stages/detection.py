@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import cv2
+import numba
 import numpy as np
 
 from pipeline.params import Section, param
@@ -295,6 +296,12 @@ class Background:
         scene's own texture)."""
         return not self.static or 4 * self.moved_samples <= self.frames
 
+    @functools.cached_property
+    def view(self) -> _View:
+        """The estimate prepared for phase correlation, once: a static background is registered
+        to every frame of its block."""
+        return _view(self.estimate)
+
 
 @functools.lru_cache(maxsize=8)
 def _hann_window(h: int, w: int) -> np.ndarray:
@@ -513,10 +520,25 @@ def _unit(cross: np.ndarray) -> np.ndarray:
     """A (H, W, 2) spectrum divided by its magnitude, in place. The magnitude is numpy's:
     ``cv2.magnitude`` rounds differently with the alignment of its arrays in memory, which
     changed the registration, the background and the detections from one run to the next."""
-    re, im = cross[..., 0], cross[..., 1]
-    mag = np.sqrt(re * re + im * im)
-    cross /= np.maximum(mag, 1e-9)[..., None]
+    if cross.flags.c_contiguous:
+        _unit_kernel(cross.reshape(-1, 2))
+    else:
+        flat = np.ascontiguousarray(cross).reshape(-1, 2)
+        _unit_kernel(flat)
+        cross[...] = flat.reshape(cross.shape)
     return cross
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True)
+def _unit_kernel(c: np.ndarray) -> None:  # pragma: no cover (compiled)
+    """Each row ``(re, im)`` of ``c`` (float32) divided by ``max(sqrt(re^2 + im^2), 1e-9)``, in
+    float32 operation for operation as numpy computes it (no fused multiply-add)."""
+    floor = np.float32(1e-9)
+    for i in range(c.shape[0]):
+        re, im = c[i, 0], c[i, 1]
+        m = max(np.sqrt(re * re + im * im), floor)
+        c[i, 0] = re / m
+        c[i, 1] = im / m
 
 
 def _peak_shift(r: np.ndarray, f: int, max_px: float) -> tuple[float, float]:
@@ -1019,7 +1041,7 @@ def detect(
     seen = bg
     # the camera's shake undone: the background moved onto this frame
     if bg.static and cfg.max_shift_px > 0:
-        dx, dy = frame_shift(bg.estimate, grey, cfg.max_shift_px)
+        dx, dy = _peak_shift(*_surface(bg.view, _view(grey)), cfg.max_shift_px)  # frame_shift
         seen = Background(
             shift_image(bg.estimate, dx, dy),
             bg.frames,
@@ -1115,3 +1137,10 @@ def _unpad(r: Region, window_px: int) -> Region:
     if b.w <= 2 * half + 2 or b.h <= 2 * half + 2:
         return r
     return replace(r, box=BBox(b.x + half, b.y + half, b.w - 2 * half, b.h - 2 * half))
+
+
+@functools.cache
+def warm_up() -> None:
+    """Compile (first run) or load from numba's cache the detector's kernels, so that the first
+    detection of a run does not pay for them. Runs once per process."""
+    _unit(np.ones((2, 2, 2), np.float32))

@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 from pipeline.config import PipelineConfig
 from pipeline.errors import InputError
+from pipeline.stages import detection
 from pipeline.stages import meanshift as meanshift_stage
 from pipeline.trackers.base import CoreEngine, Engine
 from pipeline.trackers.detect import DetectAndAssociate, detect_init
@@ -52,7 +53,7 @@ def kalman_camshift_engine(cfg: PipelineConfig) -> Engine:
 
 def detect_engine(cfg: PipelineConfig) -> Engine:
     """``detect``: detection and global association, no initial boxes (``cfg.detect``)."""
-    return CoreEngine("detect", DetectAndAssociate(cfg.detect))
+    return CoreEngine("detect", DetectAndAssociate(cfg.detect), warm_ups=(detection.warm_up,))
 
 
 def camshift_engine(cfg: PipelineConfig) -> Engine:

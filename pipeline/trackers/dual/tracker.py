@@ -12,6 +12,7 @@ from typing import ClassVar
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app_stage
 from pipeline.stages import contour as contour_stage
+from pipeline.stages import detection as detection_stage
 from pipeline.stages import extent as extent_stage
 from pipeline.stages import meanshift as meanshift_stage
 from pipeline.stages import model_update as model_update_stage
@@ -149,6 +150,7 @@ class Dual:
         """Compile or load the parts' numba kernels once per process, so that the first timed
         frame does not pay for them."""
         meanshift_stage.warm_up()  # and the histogram loops
+        detection_stage.warm_up()  # the whole-frame search
         contour_stage.warm_up()
         extent_stage.warm_up()
         model_update_stage.warm_up()
