@@ -777,14 +777,41 @@ def visible_foreground(lab: np.ndarray, bg: np.ndarray, cfg: DetectionConfig) ->
     L, Lb = lab[..., 0], bg[..., 0]
     step = max(1, int(np.sqrt(L.size / 4096)))
     gain = median(L[::step, ::step] / np.maximum(Lb[::step, ::step], 1.0))
-    dL = L - gain * Lb
-    dc = np.sqrt((lab[..., 1] - bg[..., 1]) ** 2 + (lab[..., 2] - bg[..., 2]) ** 2)
+    dL, dc = _visible_differences(lab, bg, np.float32(gain))
 
     def thr(d: np.ndarray) -> float:
         med, sigma = robust_level(d)
         return max(cfg.foreground_min_contrast, med + cfg.foreground_k * sigma)
 
-    return ((dc > thr(dc)) | (dL > thr(np.abs(dL)))).astype(np.uint8)
+    # numpy compares a float32 array with a Python float in float32
+    return _either_above(dc, np.float32(thr(dc)), dL, np.float32(thr(np.abs(dL))))
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True)
+def _visible_differences(lab, bg, gain):  # pragma: no cover (compiled)
+    """``L - gain * Lb`` and ``sqrt((a - ab)^2 + (b - bb)^2)`` of two (H, W, 3) float32 CIELAB
+    images, float32 operation for operation as numpy computes them (no fused multiply-add)."""
+    H, W = lab.shape[0], lab.shape[1]
+    dL = np.empty((H, W), np.float32)
+    dc = np.empty((H, W), np.float32)
+    for i in range(H):
+        for j in range(W):
+            dL[i, j] = lab[i, j, 0] - gain * bg[i, j, 0]
+            da = lab[i, j, 1] - bg[i, j, 1]
+            db = lab[i, j, 2] - bg[i, j, 2]
+            dc[i, j] = np.sqrt(da * da + db * db)
+    return dL, dc
+
+
+@numba.njit(cache=True, boundscheck=False, nogil=True)
+def _either_above(a, ta, b, tb):  # pragma: no cover (compiled)
+    """uint8 ``(a > ta) | (b > tb)`` of two (H, W) float32 arrays and float32 thresholds."""
+    H, W = a.shape
+    out = np.empty((H, W), np.uint8)
+    for i in range(H):
+        for j in range(W):
+            out[i, j] = 1 if (a[i, j] > ta or b[i, j] > tb) else 0
+    return out
 
 
 def visible_supported(
@@ -1144,3 +1171,6 @@ def warm_up() -> None:
     """Compile (first run) or load from numba's cache the detector's kernels, so that the first
     detection of a run does not pay for them. Runs once per process."""
     _unit(np.ones((2, 2, 2), np.float32))
+    lab = np.ones((2, 2, 3), np.float32)
+    dL, dc = _visible_differences(lab, lab, np.float32(1.0))
+    _either_above(dc, np.float32(1.0), dL, np.float32(1.0))
