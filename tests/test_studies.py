@@ -229,6 +229,8 @@ def test_detection_quality_runs_on_a_random_scene(tmp_path):
     assert abs(sum(s["shares"].values()) - 1.0) < 1e-9
     assert 0.2 < s["shares"]["covered"] < 1.0 and 0 < s["precision"] <= 1
     assert s["ms_per_frame_median"] > 0
+    # the detector's own CPU time: at most its wall time (a little over for clock granularity)
+    assert 0 < s["ms_per_frame_cpu_median"] <= 1.05 * s["ms_per_frame_median"] + 0.1
 
 
 def test_profile_tracker_counts_the_numba_kernels_as_compiled(tmp_path):

@@ -24,7 +24,8 @@ holding a target and one of them is ``oversize`` with another object, and a dete
 alone is left out of the precision. Also printed: the precision of the detections (share at
 IoU >= 0.5 with a target's box in view) and the recall on isolated visible targets (visibility
 >= 0.9, no other object's box touching theirs), the per-scene distribution of the coverage
-(mean, 10th percentile, worst) and the detector's own ms a frame (its summary's). Usage::
+(mean, 10th percentile, worst) and the detector's ms a frame, in wall time and in its own CPU time
+(its summary's: the wall time also holds what the run's reader and writer threads take). Usage::
 
     python tools/detection_quality.py --seeds 0-59 --out runs/detq          # development
     python tools/detection_quality.py --seeds 1000-1999:10 --out runs/detq  # test: every 10th
@@ -174,6 +175,7 @@ def _job(args: tuple[str, str, float, float, bool, tuple[str, ...]]) -> dict:
     r = score_scene(scene, run / "rois.csv", per, min_vis)
     r["scene"] = scene.name
     r["ms_per_frame"] = _ms_per_frame(summary)
+    r["ms_per_frame_cpu"] = summary.get("ms_per_frame_cpu")
     return r
 
 
@@ -252,6 +254,7 @@ def summarise(results: list[dict]) -> dict:
     det = sum(r["detections"] for r in results)
     iso = sum(r["isolated"] for r in results)
     ms = [r["ms_per_frame"] for r in results if r.get("ms_per_frame")]
+    cpu = [r["ms_per_frame_cpu"] for r in results if r.get("ms_per_frame_cpu")]
     return {
         "scenes": len(results),
         "target_frames": n,
@@ -263,6 +266,7 @@ def summarise(results: list[dict]) -> dict:
         "isolated_recall": sum(r["isolated_covered"] for r in results) / iso if iso else None,
         "isolated_target_frames": iso,
         "ms_per_frame_median": float(np.median(ms)) if ms else None,
+        "ms_per_frame_cpu_median": float(np.median(cpu)) if cpu else None,
     }
 
 
@@ -287,7 +291,8 @@ def table(s: dict) -> str:
         f"{f(s['coverage_p10'])}, worst {f(s['coverage_worst'])}",
         f"precision at IoU 0.5 {f(s['precision'])}; recall on isolated visible targets "
         f"{f(s['isolated_recall'])} ({s['isolated_target_frames']} target-frames); detector "
-        f"{f(s['ms_per_frame_median'])} ms a frame (median over scenes)",
+        f"{f(s['ms_per_frame_median'])} ms a frame, {f(s.get('ms_per_frame_cpu_median'))} ms of"
+        " its own CPU time (medians over scenes)",
     ]
     return "\n".join(lines)
 
