@@ -477,3 +477,22 @@ def test_the_median_equals_numpy_s_bit_for_bit():
         got, want = median(a.reshape(1, -1) if t % 5 == 0 else a), float(np.median(a))
         assert got == want, (dtype, n, got, want)
     assert np.isnan(median(np.zeros(0, np.float32)))
+
+
+def test_the_visible_foreground_s_compiled_differences_equal_numpy_s():
+    """The visible foreground's differences and mask, compiled, equal numpy's element-wise
+    formulas bit for bit (float32, thresholds given as Python floats compare in float32)."""
+    from pipeline.stages.detection import _either_above, _visible_differences
+
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        lab = (rng.random((37, 53, 3)) * [100, 255, 255] - [0, 128, 128]).astype(np.float32)
+        bg = (lab + rng.normal(0, 5, lab.shape)).astype(np.float32)
+        gain = float(np.float32(rng.uniform(0.8, 1.2)))
+        dL, dc = _visible_differences(lab, bg, np.float32(gain))
+        want_dL = lab[..., 0] - gain * bg[..., 0]
+        want_dc = np.sqrt((lab[..., 1] - bg[..., 1]) ** 2 + (lab[..., 2] - bg[..., 2]) ** 2)
+        assert dL.tobytes() == want_dL.tobytes() and dc.tobytes() == want_dc.tobytes()
+        ta, tb = float(rng.uniform(1, 8)), float(rng.uniform(1, 8))  # not float32 values
+        want = ((want_dc > ta) | (want_dL > tb)).astype(np.uint8)
+        np.testing.assert_array_equal(_either_above(dc, np.float32(ta), dL, np.float32(tb)), want)
