@@ -46,6 +46,10 @@ PARTS = (
 """Part of the tracker -> path fragments of the modules whose functions it charges. A C
 function is charged to the part of the Python function that called it."""
 
+SHARED = ("stages/_labels",)
+"""Path fragments of helper modules several parts call: their functions, and the C functions they
+call, are charged to the parts of their callers."""
+
 
 def _part_of(filename: str) -> str | None:
     f = filename.replace("\\", "/")
@@ -120,18 +124,30 @@ def _charge(
     prof: cProfile.Profile, n: int, kernels: set[tuple[str, int, str]] = frozenset()
 ) -> dict[str, tuple[float, float]]:
     st = pstats.Stats(prof)
+    stats = st.stats  # type: ignore[attr-defined]
     own: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
-    for (filename, _line, _name), (_cc, _nc, tt, _ct, callers) in st.stats.items():  # type: ignore[attr-defined]
-        compiled = filename == "~" or (filename, _line, _name) in kernels
-        part = _part_of(filename)
-        if part is None and filename == "~":  # a C function: the part of its callers
-            by = defaultdict(float)
-            for (cf, _cl, _cn), c in callers.items():
+
+    def shares(key: tuple[str, int, str], depth: int = 0) -> dict[str, float]:
+        """The parts a C or shared function's time goes to, as shares of it: its callers'."""
+        by: dict[str, float] = defaultdict(float)
+        for caller, c in stats[key][4].items():
+            cf = caller[0]
+            if (cf == "~" or any(f in cf for f in SHARED)) and caller in stats and depth < 4:
+                for p, w in shares(caller, depth + 1).items():
+                    by[p] += c[2] * w
+            else:
                 by[_part_of(cf) or "glue"] += c[2]
-            total = sum(by.values()) or 1.0
-            for p, t in by.items():
-                own[p][0] += tt * t / total
-                own[p][1] += tt * t / total
+        total = sum(by.values()) or 1.0
+        return {p: t / total for p, t in by.items()} or {"glue": 1.0}
+
+    for key, (_cc, _nc, tt, _ct, _callers) in stats.items():
+        filename = key[0]
+        compiled = filename == "~" or key in kernels
+        part = _part_of(filename)
+        if part is None and (filename == "~" or any(f in filename for f in SHARED)):
+            for p, w in shares(key).items():  # the part (or parts) of its callers
+                own[p][0] += tt * w
+                own[p][1] += tt * w if compiled else 0.0
             continue
         part = part or "glue"
         own[part][0] += tt
