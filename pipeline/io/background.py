@@ -94,9 +94,10 @@ class SequenceBackground:
     def _estimate(self, block: int) -> Background | None:
         fuse = self.cfg.uses_visible and self.channel == "infrared"
         greys, labs = [], []
+        channels = {self.channel, "visible"} if fuse else {self.channel}
         for i in self.sample_indices(block):
             try:
-                fp = self.seq.frame(i)
+                fp = self.seq.frame(i, channels)  # only what the estimate reads is decoded
             except (InputError, OSError, IndexError):
                 continue
             img = getattr(fp, self.channel)

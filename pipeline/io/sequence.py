@@ -33,7 +33,7 @@ colour = visible) unless ``channel`` says otherwise. 16-bit infrared frames are 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -318,11 +318,15 @@ class Sequence:
                 for f in ahead:
                     f.cancel()
 
-    def frame(self, index: int) -> FramePair:
-        """One frame pair by its 1-based number."""
+    def frame(self, index: int, channels: Iterable[str] | None = None) -> FramePair:
+        """One frame pair by its 1-based number; with ``channels``, only those are read and
+        decoded (the others are None)."""
         if not 1 <= index <= self.n_frames:
             raise IndexError(f"frame {index} outside 1..{self.n_frames}")
-        return self._pair(index, {c: s.read(index - 1) for c, s in self.sources.items()})
+        want = self.sources if channels is None else set(channels)
+        return self._pair(
+            index, {c: s.read(index - 1) for c, s in self.sources.items() if c in want}
+        )
 
     def _pair(self, index: int, raw: dict[str, RawFrame]) -> FramePair:
         vis = raw.get("visible")

@@ -132,6 +132,21 @@ def test_source_bytes_are_kept_for_passthrough(tmp_path):
     assert f.infrared_encoded.data == (tmp_path / "s" / "infrared" / "00003i.jpg").read_bytes()
 
 
+def test_a_frame_of_one_channel_reads_only_that_channel(tmp_path, monkeypatch):
+    """``frame(i, channels)`` decodes only the channels asked for (the background estimate reads
+    25 frames of one channel), and gives them as the whole pair does."""
+    seq = open_sequence(_rgbt234(tmp_path / "s"))
+    reads = []
+    src = seq.sources["visible"]
+    orig = src.read
+    monkeypatch.setattr(src, "read", lambda i: reads.append(i) or orig(i))
+    f = seq.frame(3, {"infrared"})
+    assert f.visible is None and reads == []
+    np.testing.assert_array_equal(f.infrared, seq.frame(3).infrared)
+    assert reads == [2]
+    assert seq.frame(3, ("infrared", "visible")).visible is not None
+
+
 def test_frames_stream_lazily(tmp_path, monkeypatch):
     seq = open_sequence(_rgbt234(tmp_path / "s"))
     reads = []

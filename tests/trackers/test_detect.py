@@ -152,10 +152,10 @@ def test_the_sequence_background_is_read_once_per_block_and_skips_unreadable_fra
     idx = broken.sample_indices(0)
     orig = seq.frame
 
-    def frame(i: int):
+    def frame(i: int, channels=None):
         if i == idx[1]:
             raise InputError(f"cannot read {frames[i - 1]}")
-        return orig(i)
+        return orig(i, channels)
 
     seq.frame = frame  # type: ignore[method-assign]
     assert broken.at(1).frames == 4
