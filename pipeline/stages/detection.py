@@ -390,7 +390,12 @@ def frame_shift(ref: np.ndarray, img: np.ndarray, max_px: float) -> tuple[float,
     large moving object cannot pass for the camera's motion; sub-pixel by a parabola through
     the peak and its neighbours on each axis. Accurate to about 0.3 px on textured frames.
     """
-    return _peak_shift(*_phase_surface(ref, img), max_px)
+    return _shift(_view(ref), _view(img), max_px)
+
+
+def _shift(ref: _View, img: _View, max_px: float) -> tuple[float, float]:
+    """:func:`frame_shift` of two prepared views."""
+    return _peak_shift(*_surface(ref, img), max_px)
 
 
 VIEW_SEARCH_FRACTION = 0.25
@@ -510,16 +515,11 @@ def _surface(ref: _View, img: _View) -> tuple[np.ndarray, int]:
     return cv2.idft(cross, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE), ref.factor
 
 
-def _phase_surface(ref: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, int]:
-    """The phase correlation surface of ``ref`` and ``img`` (Hann-windowed, at half resolution
-    when the shorter side is at least 200 px) and that factor."""
-    return _surface(_view(ref), _view(img))
-
-
 def _unit(cross: np.ndarray) -> np.ndarray:
-    """A (H, W, 2) spectrum divided by its magnitude, in place. The magnitude is numpy's:
-    ``cv2.magnitude`` rounds differently with the alignment of its arrays in memory, which
-    changed the registration, the background and the detections from one run to the next."""
+    """A (H, W, 2) spectrum divided by its magnitude, in place, in float32 as numpy computes it
+    (:func:`_unit_kernel`): ``cv2.magnitude`` rounds differently with the alignment of its arrays
+    in memory, which changed the registration, the background and the detections from one run
+    to the next."""
     if cross.flags.c_contiguous:
         _unit_kernel(cross.reshape(-1, 2))
     else:
@@ -1068,7 +1068,7 @@ def detect(
     seen = bg
     # the camera's shake undone: the background moved onto this frame
     if bg.static and cfg.max_shift_px > 0:
-        dx, dy = _peak_shift(*_surface(bg.view, _view(grey)), cfg.max_shift_px)  # frame_shift
+        dx, dy = _shift(bg.view, _view(grey), cfg.max_shift_px)
         seen = Background(
             shift_image(bg.estimate, dx, dy),
             bg.frames,
