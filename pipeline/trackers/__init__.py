@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 from pipeline.config import PipelineConfig
 from pipeline.errors import InputError
-from pipeline.stages import detection
+from pipeline.stages import detection, histogram
 from pipeline.stages import meanshift as meanshift_stage
 from pipeline.trackers.base import CoreEngine, Engine
 from pipeline.trackers.detect import DetectAndAssociate, detect_init
@@ -48,7 +48,7 @@ def meanshift_engine(cfg: PipelineConfig) -> Engine:
 def kalman_camshift_engine(cfg: PipelineConfig) -> Engine:
     """``kalman-camshift``: CamShift from a Kalman prediction (``cfg.kalman_camshift``)."""
     core = KalmanCamShift(cfg.kalman_camshift)
-    return CoreEngine("kalman-camshift", core, warm_ups=(meanshift_stage.warm_up,))
+    return CoreEngine("kalman-camshift", core, warm_ups=(histogram.warm_up,))
 
 
 def detect_engine(cfg: PipelineConfig) -> Engine:
