@@ -479,6 +479,26 @@ def test_the_median_equals_numpy_s_bit_for_bit():
     assert np.isnan(median(np.zeros(0, np.float32)))
 
 
+def test_the_per_pixel_order_statistic_equals_numpy_s_partition():
+    """``kth_smallest`` (the background's per-pixel quantile) gives ``np.partition``'s k-th value
+    of every pixel exactly: ties, both float types, every k of small stacks, blocks of columns
+    that do not divide the frame; an order outside the stack is refused."""
+    from pipeline.stages.detection import kth_smallest
+
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 7, 25):
+        for dtype in (np.float32, np.float64):
+            ties = rng.integers(0, 5, (n, 23, 37)).astype(dtype)
+            spread = rng.normal(0, 50, (n, 31, 29)).astype(dtype)
+            for k in range(n):
+                for a in (ties, spread):
+                    want = np.partition(a, k, axis=0)[k]
+                    got = kth_smallest(a, k)
+                    assert got.dtype == a.dtype and np.array_equal(got, want), (n, k, dtype)
+    with pytest.raises(ValueError):
+        kth_smallest(np.zeros((3, 4, 4), np.float32), 3)
+
+
 def test_the_visible_foreground_s_compiled_differences_equal_numpy_s():
     """The visible foreground's differences and mask, compiled, equal numpy's element-wise
     formulas bit for bit (float32, thresholds given as Python floats compare in float32)."""
