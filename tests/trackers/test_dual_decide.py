@@ -71,6 +71,37 @@ def missing(frames: int = 5, **kw) -> Evidence:
     return evidence(measured_last=False, missing=frames, **nothing)
 
 
+COLLAPSED = dict(contour_box=None, contour_ok=False, contour_reason="collapse", rho_contour=NAN)
+"""The contour collapsed under the filter's box (under ``min_area_fraction`` of the target)."""
+
+
+@pytest.mark.parametrize(
+    ("rho", "informative", "whole_rho", "status"),
+    [
+        (0.95, True, 0.9, TargetStatus.TRACKING),  # all of it is there: the infrared lost it
+        (0.9, True, 0.9, TargetStatus.TRACKING),
+        (0.85, True, 0.9, TargetStatus.OCCLUDED_PARTIAL),  # part of the box is something else
+        (NAN, True, 0.9, TargetStatus.OCCLUDED_PARTIAL),
+        (0.95, False, 0.9, TargetStatus.OCCLUDED_PARTIAL),  # a dark frame's colour says nothing
+        (0.95, True, 1.0, TargetStatus.OCCLUDED_PARTIAL),  # 1: every collapse is an occlusion
+    ],
+)
+def test_a_collapsed_contour_under_the_whole_targets_colour_is_no_occlusion(
+    rho, informative, whole_rho, status
+):
+    """The filter measures over a collapsed contour: the status says partly hidden unless the
+    colour at the filter's box matches the whole target (``whole_colour_rho``). Either way the
+    frame is measured over partial evidence: the models do not learn from it and the motion holds
+    (``held``), as for a partly hidden target."""
+    cfg = dataclasses.replace(CFG, whole_colour_rho=whole_rho)
+    ev = evidence(**COLLAPSED, rho_appearance=rho, colour_informative=informative)
+    d = decide(ev, cfg)
+    assert (d.case, d.status) == (Case.APPEARANCE, status)
+    assert d.partial and d.held and not d.learn
+    clean = decide(evidence(rho_appearance=rho, colour_informative=informative), cfg)
+    assert not clean.partial and not clean.held
+
+
 # ----------------------------------------------------------------------------------------- tracked
 
 

@@ -29,7 +29,7 @@ from pipeline.stages.model_update import (
 )
 from pipeline.tracker_config import ColourConfig
 from pipeline.trackers.dual.state import DualTarget
-from pipeline.types import BBox, TargetStatus
+from pipeline.types import BBox
 
 
 def add_time(timing: dict[str, float], key: str, t0: float) -> float:
@@ -155,7 +155,7 @@ class ColourCue:
         informative, bright = self.informative(image, kernel)
         rho1, ms_iters, y1, bins, roi0 = float("nan"), 0, y0, None, (0, 0)
         if informative:
-            missing = t.missing > 0 or t.status != TargetStatus.TRACKING
+            missing = t.missing > 0 or t.held
             H, W = image.shape[:2]
             margin = self.meanshift.search_margin * (
                 self.cfg.missing_search_scale if missing else 1.0

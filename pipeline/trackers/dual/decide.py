@@ -181,10 +181,18 @@ class Decision:
     contour_scale: bool = False  # the contour's size may enter the size update
     learn: bool = False  # the models may learn from this frame
     stage: str = "kalman"  # the stage whose box was taken (targets.csv ``source``)
+    partial: bool = False  # measured over a cut or collapsed contour
 
     @property
     def measured(self) -> bool:
         return self.box is not None
+
+    @property
+    def held(self) -> bool:
+        """Not a clean measurement of a target in view: any status but ``tracking``, or a
+        measurement over a cut or collapsed contour. The next prediction then holds the target's
+        rates, the colour searches a wider region, and the frame joins no clean history."""
+        return self.status != TargetStatus.TRACKING or self.partial
 
     @property
     def text(self) -> str:
@@ -204,10 +212,11 @@ def decision(
     contour_scale: bool = False,
     learn: bool = False,
     stage: str = "kalman",
+    partial: bool = False,
 ) -> Decision:
     """A :class:`Decision` whose ``why`` is ``rule``'s text (the one place it is made)."""
     why = rule.text(reason=reason, missing=missing)
-    return Decision(case, rule, box, noise, status, why, contour_scale, learn, stage)
+    return Decision(case, rule, box, noise, status, why, contour_scale, learn, stage, partial)
 
 
 def agree(a: BBox, b: BBox, size: tuple[float, float], fraction: float) -> bool:
@@ -421,9 +430,22 @@ class View:
 
     @property
     def partial(self) -> bool:
-        """The filter measures a target that a cut or collapsed contour shows partly hidden."""
+        """The filter measures over a cut or collapsed contour."""
         ev = self.ev
         return self.cut or (ev.contour_reason == ContourReason.COLLAPSE and ev.contour_checked)
+
+    @property
+    def hidden_part(self) -> bool:
+        """Part of the target is hidden: its contour is cut, or collapsed where the colour at the
+        filter's box does not match the whole target (``whole_colour_rho``; where it does, the
+        infrared lost a target that is all there: one near the ground's temperature)."""
+        ev, cfg = self.ev, self.cfg
+        whole = (
+            cfg.whole_colour_rho < 1
+            and ev.colour_informative
+            and _good(ev.rho_appearance, cfg.whole_colour_rho)
+        )
+        return self.cut or (self.partial and not whole)
 
     @property
     def reacquirable(self) -> bool:
@@ -551,7 +573,7 @@ def _contour(v: View, rule: Rule, learn: bool) -> Decision:
 
 def _appearance(v: View, rule: Rule) -> Decision:
     partial = v.partial
-    status = TargetStatus.OCCLUDED_PARTIAL if partial else TargetStatus.TRACKING
+    status = TargetStatus.OCCLUDED_PARTIAL if v.hidden_part else TargetStatus.TRACKING
     return decision(
         Case.APPEARANCE,
         rule,
@@ -561,6 +583,7 @@ def _appearance(v: View, rule: Rule) -> Decision:
         reason=v.ev.contour_reason,
         learn=v.can_learn and not partial,
         stage="appearance",
+        partial=partial,
     )
 
 

@@ -35,7 +35,7 @@ class Motion:
     def predict(self, t: DualTarget) -> kalman.GaussianState:
         """The prior of this frame: a missing target coasts at constant velocity and size."""
         F, Q = kalman.motion_model(self.kalman)
-        missing = t.missing > 0 or t.status != TargetStatus.TRACKING
+        missing = t.missing > 0 or t.held
         return kalman.predict(hold_rates(t.kf, self.kalman) if missing else t.kf, F, Q)
 
     def search_start(self, t: DualTarget, prior: kalman.GaussianState) -> tuple[float, float]:
@@ -83,10 +83,7 @@ class Motion:
         if decision.measured:
             kf = self.correct(prior, out, max(decision.noise, 1e-6))
             history = t.history
-            if (
-                decision.case in (Case.CONTOUR, Case.APPEARANCE)
-                and decision.status == TargetStatus.TRACKING
-            ):
+            if decision.case in (Case.CONTOUR, Case.APPEARANCE) and not decision.held:
                 clean = (float(frame), out.cx, out.cy, out.w, out.h)
                 history = (*history, clean)[-self.cfg.history_frames :]
             return kf, history, out

@@ -288,6 +288,7 @@ def update(
         appearance=model,
         case=d.case.value,
         speed=step_speed(history) if len(history) >= 2 else t.speed,
+        partial=d.partial,
     )
     return nt, result(dual, m, d, out, nt.missing, colour, rho2), events
 

@@ -36,7 +36,8 @@ class DualTarget:
     measurements; ``last_update`` the colour model's last update decision; ``split_frame``
     the frame of its last split from a group (re-merge hysteresis); ``case`` its last
     decision's case; ``speed`` how far it moved a frame over its last clean measurements, px
-    (kept while its history is too short to tell: after it was found again).
+    (kept while its history is too short to tell: after it was found again); ``partial``
+    whether its last measurement was over a cut or collapsed contour.
     """
 
     id: int
@@ -56,6 +57,13 @@ class DualTarget:
     entering: tuple[bool, bool] = (False, False)
     case: str = "init"
     speed: float = 0.0
+    partial: bool = False
+
+    @property
+    def held(self) -> bool:
+        """Its last frame was no clean measurement of it in view (:attr:`Decision.held`): any
+        status but ``tracking``, or a measurement over a cut or collapsed contour."""
+        return self.status != TargetStatus.TRACKING or self.partial
 
     @property
     def reference_size(self) -> tuple[float, float]:
