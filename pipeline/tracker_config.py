@@ -221,13 +221,14 @@ class DeciderConfig(Section):
     whole_colour_rho : float
         A colour match this strong at the filter's box says the whole target is there: a
         contour that collapsed under it is the infrared's failure (a target near the ground's
-        temperature), not a part hidden, so the target is reported ``tracking`` instead of
-        ``occluded-partial``. The frame still counts as measured over partial evidence (the
-        models do not learn from it, the motion holds as for a hidden part), so the boxes do not
-        depend on it; in [0, 1], default 0.9: on the development seeds 0-119 it is reached on
-        46 % (one target) and 31 % (2-3 targets) of the fully visible target-frames whose
-        contour collapsed, and on 2-3 % of the partly hidden ones. 1: every collapse is a
-        partial occlusion.
+        temperature), not a part hidden: the target is reported ``tracking`` instead of
+        ``occluded-partial`` and its models learn from the frame, unless another target is
+        within half a box of it (the colour cannot tell that one from this one). The frame still
+        counts as partial evidence: the colour extent does not widen the box (nothing in the
+        infrared bounds it) and the motion holds as for a hidden part; in [0, 1], default 0.9:
+        on the development seeds it is reached on 46 % (one target) and 31 % (2-3 targets) of
+        the fully visible target-frames whose contour collapsed, and on 2-3 % of the partly
+        hidden ones. 1: every collapse is a partial occlusion (models frozen).
     partial_area_ratio : float
         A contour box under this share of the target's usual box is cut by something in
         front (the target is partially occluded), in (0, 1); default 0.6.

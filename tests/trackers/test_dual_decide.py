@@ -90,14 +90,14 @@ def test_a_collapsed_contour_under_the_whole_targets_colour_is_no_occlusion(
     rho, informative, whole_rho, status
 ):
     """The filter measures over a collapsed contour: the status says partly hidden unless the
-    colour at the filter's box matches the whole target (``whole_colour_rho``). Either way the
-    frame is measured over partial evidence: the models do not learn from it and the motion holds
-    (``held``), as for a partly hidden target."""
+    colour at the filter's box matches the whole target (``whole_colour_rho``), and only then may
+    the models learn from the frame. Either way it is measured over partial evidence: the motion
+    holds (``held``), as for a partly hidden target."""
     cfg = dataclasses.replace(CFG, whole_colour_rho=whole_rho)
     ev = evidence(**COLLAPSED, rho_appearance=rho, colour_informative=informative)
     d = decide(ev, cfg)
     assert (d.case, d.status) == (Case.APPEARANCE, status)
-    assert d.partial and d.held and not d.learn
+    assert d.partial and d.held and d.learn == (status == TargetStatus.TRACKING)
     clean = decide(evidence(rho_appearance=rho, colour_informative=informative), cfg)
     assert not clean.partial and not clean.held
 

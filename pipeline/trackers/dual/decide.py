@@ -581,7 +581,7 @@ def _appearance(v: View, rule: Rule) -> Decision:
         v.cfg.noise_scale_appearance,
         status,
         reason=v.ev.contour_reason,
-        learn=v.can_learn and not partial,
+        learn=v.can_learn and not v.hidden_part,
         stage="appearance",
         partial=partial,
     )

@@ -256,10 +256,13 @@ def update(
 ) -> tuple[DualTarget, TargetResult, list[Event]]:
     """Size, models, motion, events and the reported result of one target after its decision:
     (new state, result, events). ``neighbours`` are the other targets' boxes this frame (the
-    colour extent is not measured where one is near)."""
+    colour extent is not measured where one is near, and a measurement over a collapsed contour
+    teaches the models nothing beside one: :func:`_near_another`)."""
     cs, c = m.cs, m.contour
     t = cs.t
     clock = time.perf_counter()
+    if m.decision.partial and m.decision.learn and _near_another(m.decision.box, neighbours):
+        m = dataclasses.replace(m, decision=dataclasses.replace(m.decision, learn=False))
     size, app_size, d, entering = _size(dual, m, neighbours)
     out = _output_box(cs, d, size)
     q, colour, rho2 = dual.colour.learn(cs, out, d.learn, d.measured)
@@ -324,11 +327,19 @@ def _size(
     return size, app_size, d, entering
 
 
+def _near_another(box: BBox | None, neighbours: tuple[BBox, ...]) -> bool:
+    """Another target's box overlaps ``box`` grown by half its size on every side."""
+    if box is None:
+        return False
+    grown = BBox(box.x - 0.5 * box.w, box.y - 0.5 * box.h, 2 * box.w, 2 * box.h)
+    return any(grown.iou(b) > 0 for b in neighbours)
+
+
 def _extent(dual: Dual, m: Measured, neighbours: tuple[BBox, ...]) -> BBox | None:
     """The colour extent at the measurement, when the decision lets the models learn (a hidden
     target's colours are someone else's) and the colour is seen."""
     d = m.decision
-    if dual.extent is None or d.box is None or not d.learn or not m.cs.informative:
+    if dual.extent is None or d.box is None or not d.learn or d.partial or not m.cs.informative:
         return None
     return dual.extent.measure(m.cs, d.box.center, neighbours)
 
