@@ -213,6 +213,25 @@ def test_a_cold_cyclist_whose_contour_collapses_is_not_called_occluded(tmp_path)
     assert auc["0.9"] >= auc["1"] + 0.02, auc
 
 
+def test_a_target_walking_in_through_the_border_grows_its_box(tmp_path):
+    """Random development seed 34: a person given cut by the left border (9 x 33 px) walks in to
+    its full width (18-19 px by frame 10). Its first clean contour inside the frame gives the box
+    the width the border hid (``walked-in``): the width against the truth's goes from under 0.7
+    before that frame to at least 0.75 after it."""
+    from pipeline.synthetic import synthesize_random
+
+    d = synthesize_random(tmp_path / "s", 34, targets=1, progress=False)
+    gt = np.loadtxt(d / "visible.txt", delimiter=",")
+    res = run_track(d, RunOptions(tracker="dual", out_dir=tmp_path / "r", rrd=False, plots=False))
+    table = list(csv.DictReader((res.out_dir / "targets.csv").read_text().splitlines()))
+    walked = [int(r["frame"]) for r in table if r["decision"].endswith("walked-in")]
+    assert walked and walked[0] <= 20, walked
+    ratio = {int(r["frame"]): float(r["w_px"]) / gt[int(r["frame"]) - 1, 2] for r in table}
+    before = float(np.median([ratio[f] for f in range(walked[0] - 4, walked[0])]))
+    after = float(np.median([ratio[f] for f in range(walked[0], walked[0] + 9)]))
+    assert before < 0.7 and after >= 0.75, (before, after)
+
+
 def test_a_measurement_over_a_collapsed_contour_teaches_nothing_beside_another_target():
     """Another target's box within half a box of the measurement (either side, either axis):
     the colour match cannot tell that target from this one, so the models do not learn there."""
