@@ -487,9 +487,11 @@ def run_random_bench(
     config_path: Path | None = None,
     repeat: int = 1,
     progress: bool | None = None,
+    channel: str | None = None,
 ) -> dict[str, object]:
     """``dualtrack bench --random N``: every tracker on a set of random scenes, and the
-    distribution of its scores.
+    distribution of its scores; ``channel`` (``visible`` or ``infrared``) runs the trackers on
+    that channel of the scenes alone.
 
     Returns ``{"rows": [...], "distribution": {tracker: {...}}, "attributes": {tracker: {attr:
     {...}}}}``: per tracker the mean, 10th percentile and worst seed of P@20 and AUC (and of
@@ -517,6 +519,7 @@ def run_random_bench(
             sets=sets,
             config_path=config_path,
             repeat=repeat,
+            channel=channel,
         )
         seed_of = {d.name: int(_json.loads((d / "scene.json").read_text())["seed"]) for d in dirs}
         by_dir = {d.name: d for d in dirs}

@@ -597,11 +597,17 @@ def _cmd_bench(a: argparse.Namespace) -> int:
             sets=a.set,
             config_path=a.config,
             repeat=a.repeat,
+            channel=a.channel,
         )
         print(format_distribution(res))
         return 0
     if a.targets:
         from pipeline.bench import format_scaling, run_scaling
+
+        if a.channel is not None:
+            raise InputError(
+                "--channel applies to sequence folders and --random scenes, not to --targets"
+            )
 
         try:
             counts = [int(v) for v in a.targets.split(",") if v.strip()]

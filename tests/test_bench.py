@@ -129,6 +129,32 @@ def test_bench_random_prints_the_distribution_and_attributes(tmp_path, capsys):
     ).stat().st_mtime_ns == before
 
 
+def test_bench_random_runs_one_channel_when_asked(tmp_path, capsys):
+    """``bench --random/--seeds --channel visible`` runs the trackers on the scenes' visible
+    frames alone (it ran both channels, silently, before); ``--channel`` with ``--targets`` is
+    refused."""
+    from pipeline.cli import main
+
+    args = ["bench", "--seeds", "1", "--random-targets", "1", "--trackers", "meanshift"]
+    for channel in ("visible", "infrared"):
+        out = tmp_path / channel
+        assert main([*args, "--channel", channel, "--out", str(out)]) == 0
+        summary = json.loads(
+            (out / "runs" / "meanshift" / "random-0001-t1-1" / "summary.json").read_text()
+        )
+        assert summary["channels"] == [channel]
+    assert main([*args, "--out", str(tmp_path / "both")]) == 0
+    summary = json.loads(
+        (
+            tmp_path / "both" / "runs" / "meanshift" / "random-0001-t1-1" / "summary.json"
+        ).read_text()
+    )
+    assert sorted(summary["channels"]) == ["infrared", "visible"]
+    capsys.readouterr()
+    assert main(["bench", "--targets", "1", "--channel", "visible"]) == 1
+    assert "--channel applies to sequence folders" in capsys.readouterr().err
+
+
 def test_bench_random_rejects_bad_options(capsys):
     from pipeline.cli import main
 
