@@ -596,6 +596,8 @@ def kth_smallest(stack: np.ndarray, k: int) -> np.ndarray:
         raise ValueError(
             f"kth_smallest needs an (n, H, W) stack and 0 <= k < n; got {stack.shape} and k={k}"
         )
+    if stack.dtype not in (np.float32, np.float64):
+        raise ValueError(f"kth_smallest needs float32 or float64 values; got {stack.dtype}")
     flat = np.ascontiguousarray(stack).reshape(stack.shape[0], -1)
     return _kth_smallest(flat, k).reshape(stack.shape[1:])
 

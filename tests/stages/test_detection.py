@@ -497,6 +497,8 @@ def test_the_per_pixel_order_statistic_equals_numpy_s_partition():
                     assert got.dtype == a.dtype and np.array_equal(got, want), (n, k, dtype)
     with pytest.raises(ValueError):
         kth_smallest(np.zeros((3, 4, 4), np.float32), 3)
+    with pytest.raises(ValueError):
+        kth_smallest(np.zeros((3, 4, 4), np.uint8), 1)
 
 
 def test_the_visible_foreground_s_compiled_differences_equal_numpy_s():
