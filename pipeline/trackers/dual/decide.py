@@ -59,6 +59,7 @@ from dataclasses import dataclass
 
 from pipeline.stages.contour import ContourReason
 from pipeline.tracker_config import DeciderConfig
+from pipeline.trackers.dual.state import held
 from pipeline.types import BBox, TargetStatus
 
 __all__ = [
@@ -189,10 +190,9 @@ class Decision:
 
     @property
     def held(self) -> bool:
-        """Not a clean measurement of a target in view: any status but ``tracking``, or a
-        measurement over a cut or collapsed contour. The next prediction then holds the target's
-        rates, the colour searches a wider region, and the frame joins no clean history."""
-        return self.status != TargetStatus.TRACKING or self.partial
+        """This frame is no clean measurement of the target in view
+        (:func:`pipeline.trackers.dual.state.held`)."""
+        return held(self.status, self.partial)
 
     @property
     def text(self) -> str:

@@ -22,6 +22,14 @@ BackgroundSource = Background | Callable[[], Background | None] | None
 it (read only when the whole-frame search runs), or None (each frame's own)."""
 
 
+def held(status: TargetStatus, partial: bool) -> bool:
+    """Whether a frame with this outcome is no clean measurement of a target in view: any status
+    but ``tracking``, or a measurement over a cut or collapsed contour (``partial``). After one,
+    the next prediction holds the target's rates, the colour searches a wider region, and the
+    frame joins no clean history."""
+    return status != TargetStatus.TRACKING or partial
+
+
 @dataclass(frozen=True)
 class DualTarget:
     """One target: where it is, its models, and how long it has been missing.
@@ -61,9 +69,8 @@ class DualTarget:
 
     @property
     def held(self) -> bool:
-        """Its last frame was no clean measurement of it in view (:attr:`Decision.held`): any
-        status but ``tracking``, or a measurement over a cut or collapsed contour."""
-        return self.status != TargetStatus.TRACKING or self.partial
+        """Its last frame was no clean measurement of it in view (:func:`held`)."""
+        return held(self.status, self.partial)
 
     @property
     def reference_size(self) -> tuple[float, float]:
