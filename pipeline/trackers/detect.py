@@ -64,10 +64,10 @@ from pipeline.stages.detection import (
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.tracker_config import DetectConfig
 from pipeline.trackers.base import CoreEngine, pick_channel, preferred_channel
+from pipeline.trackers.lifecycle import born, transition
 from pipeline.types import (
     BBox,
     Event,
-    EventKind,
     FrameResult,
     InitTarget,
     TargetResult,
@@ -390,8 +390,7 @@ class DetectAndAssociate:
             status = TargetStatus.TRACKING
             t = self._confirmed(t, r, hits, frame, ledger)
         elif status in (TargetStatus.OCCLUDED_SEVERE, TargetStatus.MERGED):
-            kind = EventKind.SPLIT if status == TargetStatus.MERGED else EventKind.OCCLUSION_END
-            ledger.events.append(Event(kind, f"T{t.id} detected again on its own", (t.id,)))
+            ledger.events += transition(t.id, status, TargetStatus.TRACKING, "detected on its own")
             status = TargetStatus.TRACKING
         nt = dataclasses.replace(
             t,
@@ -420,12 +419,12 @@ class DetectAndAssociate:
         age = frame - t.born + 1
         old = _relink(r.box, ledger.dormant, frame, self.cfg.association.relink_frames)
         if old is None:
-            text = f"T{t.id} confirmed ({hits} detections in {age} frames)"
-            ledger.events.append(Event(EventKind.CONFIRMED, text, (t.id,)))
+            why = f"{hits} detections in {age} frames"
+            ledger.events += transition(t.id, t.status, TargetStatus.TRACKING, why)
             return t
         ledger.wake(old.id)
-        text = f"T{old.id} found again ({age} frames after a new track started on it)"
-        ledger.events.append(Event(EventKind.REACQUIRED, text, (old.id,)))
+        why = f"found again {age} frames after a new track started on it"
+        ledger.events += transition(old.id, old.status, TargetStatus.TRACKING, why)
         return dataclasses.replace(t, id=old.id)
 
     def _in_blob(
@@ -440,13 +439,11 @@ class DetectAndAssociate:
         status = TargetStatus.MERGED
         if t.status != TargetStatus.MERGED:
             at = f"({r.centroid[0]:.0f},{r.centroid[1]:.0f})"
-            ledger.events.append(
-                Event(EventKind.MERGE, f"T{t.id} merged into the blob at {at}", (t.id,))
-            )
+            ledger.events += transition(t.id, t.status, status, f"into the blob at {at}")
         if misses > self.cfg.association.max_merged_frames:
+            why = f"{misses} frames inside a merged blob"
+            ledger.events += transition(t.id, status, TargetStatus.LOST, why)
             status = TargetStatus.LOST
-            text = f"T{t.id} lost ({misses} frames inside a merged blob)"
-            ledger.events.append(Event(EventKind.LOST, text, (t.id,)))
         return dataclasses.replace(t, kf=prior, box=box, status=status, misses=misses)
 
     def _coasting(
@@ -471,14 +468,14 @@ class DetectAndAssociate:
             misses > min(a.max_misses, a.coast_per_hit * t.hits)
             or box.clip(W, H).area < 0.25 * box.area
         ):
-            status = TargetStatus.LOST
             out = box.clip(W, H).area < 0.25 * box.area
             why = "left the frame" if out else f"{misses} frames without a detection"
-            ledger.events.append(Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
+            ledger.events += transition(t.id, status, TargetStatus.LOST, why)
+            status = TargetStatus.LOST
         elif status in (TargetStatus.TRACKING, TargetStatus.MERGED):
+            why = "not detected, coasting"
+            ledger.events += transition(t.id, status, TargetStatus.OCCLUDED_SEVERE, why)
             status = TargetStatus.OCCLUDED_SEVERE
-            text = f"T{t.id} not detected (coasting)"
-            ledger.events.append(Event(EventKind.OCCLUSION_START, text, (t.id,)))
         return dataclasses.replace(t, kf=prior, box=box, status=status, misses=misses)
 
     def _births(self, state: DetectState, fm: FrameMatch, frame: int, ledger: _Ledger) -> int:
@@ -501,9 +498,7 @@ class DetectAndAssociate:
             if t is None:
                 t = _new_track(next_id, r, fm.grey, frame, self.kalman)
                 at = f"({r.centroid[0]:.0f},{r.centroid[1]:.0f})"
-                ledger.events.append(
-                    Event(EventKind.BIRTH, f"T{next_id} born at {at}", (next_id,))
-                )
+                ledger.events += born(next_id, f"detected at {at}")
                 next_id += 1
                 if a.confirm_hits <= 1:
                     t = dataclasses.replace(t, status=TargetStatus.TRACKING)
@@ -544,7 +539,8 @@ class DetectAndAssociate:
         if not (np.isfinite(rho) and rho >= a.resume_min_correlation):
             return None
         ledger.wake(old.id)
-        ledger.events.append(Event(EventKind.REACQUIRED, f"T{old.id} detected again", (old.id,)))
+        why = "detected again, looking as it did"
+        ledger.events += transition(old.id, old.status, TargetStatus.TRACKING, why)
         t = _new_track(old.id, r, grey, frame, self.kalman)
         return dataclasses.replace(t, status=TargetStatus.TRACKING, hits=a.confirm_hits)
 

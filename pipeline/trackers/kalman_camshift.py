@@ -95,10 +95,10 @@ from pipeline.stages.occlusion import (
 )
 from pipeline.tracker_config import CamShiftConfig, KalmanCamShiftConfig
 from pipeline.trackers.base import pick_channel
+from pipeline.trackers.lifecycle import transition
 from pipeline.types import (
     BBox,
     Event,
-    EventKind,
     FrameResult,
     InitTarget,
     TargetResult,
@@ -311,19 +311,12 @@ class KalmanCamShift:
         after K0 such frames; a lost target coasts on."""
         H, R = kalman.measurement_model(self.cfg.kalman)
         pbox, last, d = prior.box, t.last_rect, s.d
-        missing = t.status != TargetStatus.TRACKING
 
         def fed(box: BBox) -> kalman.GaussianState:
             return kalman.correct(prior, kalman.box_measurement(box), H, R, self.cfg.kalman).state
 
         if grade == Grade.NONE and s.box is not None:
-            ev: tuple[Event, ...] = ()
-            if t.status == TargetStatus.LOST:
-                ev = (Event(EventKind.REACQUIRED, f"T{t.id} re-acquired (d={d:.2f})", (t.id,)),)
-            elif missing:
-                ev = (
-                    Event(EventKind.OCCLUSION_END, f"T{t.id} visible again (d={d:.2f})", (t.id,)),
-                )
+            ev = transition(t.id, t.status, TargetStatus.TRACKING, f"d={d:.2f}")
             return _Outcome(fed(s.box), s.box, TargetStatus.TRACKING, s.source, s.box, ev)
         if t.status == TargetStatus.LOST:  # keep coasting and searching; nothing is measured
             out = BBox.from_center(pbox.cx, pbox.cy, last.w, last.h)
@@ -332,8 +325,7 @@ class KalmanCamShift:
             return _Outcome(fed(pbox), pbox, TargetStatus.OCCLUDED_PARTIAL, "kalman", pbox)
         sized = BBox.from_center(pbox.cx, pbox.cy, last.w, last.h)
         if is_lost(severe_run, ocfg):
-            text = f"T{t.id} lost after {severe_run} severe frames"
-            ev = (Event(EventKind.LOST, text, (t.id,)),)
+            ev = transition(t.id, t.status, TargetStatus.LOST, f"after {severe_run} severe frames")
             return _Outcome(prior, sized, TargetStatus.LOST, "kalman", last, ev)
         return _Outcome(fed(sized), sized, TargetStatus.OCCLUDED_SEVERE, "kalman", last)
 
@@ -357,7 +349,7 @@ class KalmanCamShift:
             )
             kf = stop(prior)
             out = BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
-            ev = (*o.events, Event(EventKind.LOST, f"T{t.id} lost ({why})", (t.id,)))
+            ev = (*o.events, *transition(t.id, t.status, TargetStatus.LOST, why))
             return dataclasses.replace(
                 o, kf=kf, out=out, status=TargetStatus.LOST, source="kalman", events=ev
             )
@@ -378,9 +370,9 @@ class KalmanCamShift:
         measurements (discarding those the occluder was dragging); the onset and a partial
         occlusion turning severe are events."""
         if o.status.is_occluded and t.status == TargetStatus.TRACKING:
-            text = f"T{t.id} {o.status} (d={s.d:.2f}, area={s.area:.0f})"
+            why = f"d={s.d:.2f}, area={s.area:.0f}"
             o = dataclasses.replace(
-                o, events=(*o.events, Event(EventKind.OCCLUSION_START, text, (t.id,)))
+                o, events=(*o.events, *transition(t.id, t.status, o.status, why))
             )
             restart = coast_start(t.history, prior, frame, ocfg.rewind_frames)
             if restart is None:
@@ -396,9 +388,9 @@ class KalmanCamShift:
                 o, kf=restart, out=out, last_rect=out if partial else last, source="kalman-refit"
             )
         if o.status == TargetStatus.OCCLUDED_SEVERE and t.status == TargetStatus.OCCLUDED_PARTIAL:
-            text = f"T{t.id} occlusion now severe (area={s.area:.0f})"
+            why = f"area={s.area:.0f}"
             return dataclasses.replace(
-                o, events=(*o.events, Event(EventKind.OCCLUSION_START, text, (t.id,)))
+                o, events=(*o.events, *transition(t.id, t.status, o.status, why))
             )
         return o
 

@@ -20,10 +20,9 @@ from pipeline.stages.histogram import appearance_bins, kernel_histogram, search_
 from pipeline.stages.meanshift import mean_shift_scale_search
 from pipeline.tracker_config import MeanShiftTrackerConfig
 from pipeline.trackers.base import pick_channel
+from pipeline.trackers.lifecycle import transition
 from pipeline.types import (
     BBox,
-    Event,
-    EventKind,
     FrameResult,
     InitTarget,
     TargetResult,
@@ -133,8 +132,8 @@ class MeanShift:
         new_targets, results, events = [], [], []
         for t in state.targets:
             nt, r = self.track_target(image, t)
-            if nt.status != t.status:
-                events.append(_status_event(t.id, nt.status))
+            why = "no model colour in the window" if nt.status.is_occluded else "colour found"
+            events += transition(t.id, t.status, nt.status, why)
             new_targets.append(nt)
             results.append(r)
         dt = time.perf_counter() - t0
@@ -142,10 +141,3 @@ class MeanShift:
             dataclasses.replace(state, targets=tuple(new_targets)),
             FrameResult(frames.index, tuple(results), tuple(events), {"meanshift": dt}),
         )
-
-
-def _status_event(tid: int, status: TargetStatus) -> Event:
-    if status.is_occluded:
-        text = f"T{tid} {status} (no model colour in the window)"
-        return Event(EventKind.OCCLUSION_START, text, (tid,))
-    return Event(EventKind.OCCLUSION_END, f"T{tid} {status}", (tid,))

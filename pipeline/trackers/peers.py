@@ -18,10 +18,9 @@ from pipeline.errors import InputError
 from pipeline.io.sequence import FramePair
 from pipeline.tracker_config import CamShiftConfig, OpenCVTrackerConfig
 from pipeline.trackers.base import pick_channel
+from pipeline.trackers.lifecycle import transition
 from pipeline.types import (
     BBox,
-    Event,
-    EventKind,
     FrameResult,
     InitTarget,
     TargetResult,
@@ -103,13 +102,8 @@ class CamShiftEngine:
                     box = BBox(*window)
                 new_status = TargetStatus.TRACKING
                 keep = BBox(*new_window).to_cv(w, h)
-            if new_status != status:
-                kind = (
-                    EventKind.OCCLUSION_START
-                    if new_status.is_occluded
-                    else EventKind.OCCLUSION_END
-                )
-                events.append(Event(kind, f"T{tid} {new_status}", (tid,)))
+            why = "CamShift window collapsed" if new_status.is_occluded else "CamShift window"
+            events += transition(tid, status, new_status, why)
             self.targets[tid] = (hist, keep, new_status)
             out.append(
                 TargetResult(
@@ -189,16 +183,11 @@ class OpenCVEngine:
             ok, rect = tr.update(img)  # type: ignore[attr-defined]
             if ok and rect[2] > 0 and rect[3] > 0:
                 box, new_status = BBox(*map(float, rect)), TargetStatus.TRACKING
-                if status == TargetStatus.LOST:
-                    events.append(Event(EventKind.REACQUIRED, f"T{tid} re-acquired", (tid,)))
+                why = f"{self.kind} reported the target"
             else:
                 box, new_status = last, TargetStatus.LOST
-                if status != TargetStatus.LOST:
-                    events.append(
-                        Event(
-                            EventKind.LOST, f"T{tid} lost ({self.kind} reported failure)", (tid,)
-                        )
-                    )
+                why = f"{self.kind} reported failure"
+            events += transition(tid, status, new_status, why)
             self.trackers[tid] = (tr, box, new_status)
             out.append(TargetResult(tid, box, new_status, f"opencv-{self.kind}"))
         return FrameResult(

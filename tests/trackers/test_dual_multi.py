@@ -124,7 +124,9 @@ def test_merge_and_split_events_roles_and_drawing(scene, tmp_path):
 
     store = open_store(out / "run.rrd")
     log = [t for _f, t in texts(store, "events")]
-    assert any("merged" in t and "foreground" in t and "occluded" in t for t in log), log
+    # each member's move into the group is its own event, naming the group and its place in it
+    assert any("merged (in T1+T2, in front)" in t for t in log), log
+    assert any("merged (in T1+T2, hidden)" in t for t in log), log
     assert any("split" in t or "separated" in t for t in log), log
     # the occluded member is drawn thin, the foreground thick
     f = both[len(both) // 2]

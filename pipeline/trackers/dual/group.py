@@ -195,7 +195,7 @@ class GroupHandler:
             ev = []
             if i == pairs[0][0]:
                 split = f"T{tid} split from {members}; re-associated: {text}"
-                ev = [Event(EventKind.SPLIT, split, (tid,))]
+                ev = [Event(EventKind.SPLIT, split, g.ids)]
             others = tuple(blobs[k] for _, k in pairs if k != j)
             out.append((css[i], blobs[j], others, ev))
         return out
@@ -215,13 +215,11 @@ class GroupHandler:
         return Roles(fg_id, group_ok, wider, c.box.area / sum(cs.t.reference_area for cs in css))
 
     def merge_events(self, g: GroupBlob, roles: Roles) -> list[Event]:
-        """The merge event of a group just formed, or of a new foreground."""
+        """The group's event of a new foreground (each member's move into the group is its own
+        status event, :meth:`Lifecycle.joined`)."""
         ids, fg_id = g.ids, roles.foreground
         if not all(cs.t.status == TargetStatus.MERGED for cs in g.css):
-            who = ", ".join(f"T{k} {'foreground' if k == fg_id else 'occluded'}" for k in ids)
-            return [
-                Event(EventKind.MERGE, f"{'+'.join(f'T{k}' for k in ids)} merged ({who})", ids)
-            ]
+            return []
         if g.prev is not None and g.prev.foreground != fg_id:
             behind = "+".join(f"T{k}" for k in ids if k != fg_id)
             return [Event(EventKind.MERGE, f"T{fg_id} now in front of {behind}", ids)]

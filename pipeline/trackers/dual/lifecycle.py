@@ -1,5 +1,6 @@
-"""The dual tracker's lifecycle: when a coasting target is lost, the events of a status change,
-and the confidence each status reports."""
+"""The dual tracker's lifecycle: when a coasting target is lost, the confidence each status
+reports, and its status events, which the lifecycle every engine shares names
+(:func:`pipeline.trackers.lifecycle.transition`)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ from dataclasses import dataclass
 
 from pipeline.tracker_config import LifecycleConfig
 from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule, decision
-from pipeline.types import Event, EventKind, TargetStatus
+from pipeline.trackers.lifecycle import transition
+from pipeline.types import Event, TargetStatus
 
 
 @dataclass(frozen=True)
@@ -55,26 +57,25 @@ class Lifecycle:
     def events(
         tid: int, old: TargetStatus, d: Decision, contour_reason: str | None
     ) -> list[Event]:
-        """The event of target ``tid``'s status changing from ``old`` to ``d.status``: lost,
-        re-acquired, an occlusion's start or end (none when it stays)."""
+        """The event of target ``tid``'s status moving from ``old`` to ``d.status``
+        (:func:`pipeline.trackers.lifecycle.transition`), the decision's reason in brackets (and
+        the contour's at an occlusion's start)."""
         new = d.status
-        if new == old:
-            return []
+        why = d.why
         if new == TargetStatus.LOST:
-            return [Event(EventKind.LOST, f"T{tid} lost ({d.why.replace('-', ' ')})", (tid,))]
-        if old == TargetStatus.LOST:
-            return [Event(EventKind.REACQUIRED, f"T{tid} re-acquired ({d.why})", (tid,))]
-        if new.is_occluded and not old.is_occluded:
-            text = f"T{tid} {new} ({d.why}, contour {contour_reason or 'none'})"
-            return [Event(EventKind.OCCLUSION_START, text, (tid,))]
-        if not new.is_occluded and old.is_occluded:
-            return [Event(EventKind.OCCLUSION_END, f"T{tid} visible again ({d.why})", (tid,))]
-        return []
+            why = d.why.replace("-", " ")
+        elif new.is_occluded and old != TargetStatus.LOST:
+            why = f"{d.why}, contour {contour_reason or 'none'}"
+        return list(transition(tid, old, new, why))
+
+    @staticmethod
+    def joined(tid: int, old: TargetStatus, group: str, where: str) -> list[Event]:
+        """The event of target ``tid`` joining (or staying in) a merged ``group`` (``T1+T2``),
+        ``where`` in it (in front, hidden)."""
+        return list(transition(tid, old, TargetStatus.MERGED, f"in {group}, {where}"))
 
     @staticmethod
     def lost_in_group(tid: int, old: TargetStatus, missing: int) -> list[Event]:
         """The event of a group member given up after ``missing`` frames hidden in the group."""
-        if old == TargetStatus.LOST:
-            return []
-        text = f"T{tid} lost (hidden in a merge for {missing} frames)"
-        return [Event(EventKind.LOST, text, (tid,))]
+        why = f"hidden in a merge for {missing} frames"
+        return list(transition(tid, old, TargetStatus.LOST, why))

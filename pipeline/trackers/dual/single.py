@@ -20,7 +20,7 @@ from pipeline.trackers.dual.colour import ColourStep, add_time
 from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule, needs_background
 from pipeline.trackers.dual.redetect import step_speed
 from pipeline.trackers.dual.state import BackgroundSource, DualTarget
-from pipeline.types import BBox, Event, EventKind, TargetResult
+from pipeline.types import BBox, Event, EventKind, TargetResult, TargetStatus
 
 if TYPE_CHECKING:
     from pipeline.trackers.dual.tracker import Dual
@@ -253,11 +253,14 @@ def update(
     timing: dict[str, float],
     events_in: list[Event] | None = None,
     neighbours: tuple[BBox, ...] = (),
+    was: TargetStatus | None = None,
 ) -> tuple[DualTarget, TargetResult, list[Event]]:
     """Size, models, motion, events and the reported result of one target after its decision:
     (new state, result, events). ``neighbours`` are the other targets' boxes this frame (the
     colour extent is not measured where one is near, and a measurement over a collapsed contour
-    teaches the models nothing beside one: :func:`_near_another`)."""
+    teaches the models nothing beside one: :func:`_near_another`). ``was`` is the status the
+    target had before this frame where the caller measured it under another (a group's member
+    after the split); the status event is the move from it (default: the target's own)."""
     cs, c = m.cs, m.contour
     t = cs.t
     clock = time.perf_counter()
@@ -271,7 +274,8 @@ def update(
     clock = add_time(timing, "model_update", clock)
     kf, history, out = dual.motion.update(t, cs.prior, d, out, frames.index)
     add_time(timing, "kalman", clock)
-    events += dual.lifecycle.events(t.id, t.status, d, c.reason if c is not None else None)
+    old = t.status if was is None else was
+    events += dual.lifecycle.events(t.id, old, d, c.reason if c is not None else None)
     memory, memory_center = _contour_memory(t, d, c)
     nt = dataclasses.replace(
         t,

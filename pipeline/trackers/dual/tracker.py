@@ -34,7 +34,6 @@ from pipeline.trackers.dual.state import BackgroundSource, DualState, DualTarget
 from pipeline.types import (
     BBox,
     Event,
-    EventKind,
     FrameResult,
     InitTarget,
     TargetResult,
@@ -295,14 +294,12 @@ class Dual:
         timing: dict[str, float],
     ) -> tuple[single.Measured, list[Event]]:
         """The cues and decision of a target in no group this frame; one whose group dissolved
-        without a visible split starts again from its prediction."""
-        ev: list[Event] = []
+        without a visible split starts again from its prediction (its move out of ``merged`` is
+        the lifecycle's ``split`` event, with the decision that took it)."""
         start = None
         if cs.t.status == TargetStatus.MERGED and cs.t.case == Case.MERGED.value:
-            text = f"T{cs.t.id} separated (merge test no longer holds)"
-            ev.append(Event(EventKind.SPLIT, text, (cs.t.id,)))
             start = cs.box_prior.center
-        return single.measure(self, frames, cs, state.mode, timing, start, state.background), ev
+        return single.measure(self, frames, cs, state.mode, timing, start, state.background), []
 
     def _one_object_one_target(
         self, alone: dict[int, tuple[single.Measured, list[Event]]]
@@ -415,20 +412,19 @@ class Dual:
                 t = dataclasses.replace(cs.t, memory=None, status=TargetStatus.OCCLUDED_PARTIAL)
                 alone = dataclasses.replace(cs, t=t)
                 m = single.measure(self, frames, alone, state.mode, timing, blob.center)
-                out[t.id] = single.update(self, frames, m, state.mode, timing, ev, others)
+                out[t.id] = single.update(
+                    self, frames, m, state.mode, timing, ev, others, was=cs.t.status
+                )
             return out, None
         c = g.contour
         roles = gh.roles(g, c.box is not None and self.contour.contrasted(c))
         events = gh.merge_events(g, roles)
         placed = gh.placements(g, roles)
-        members = {}
+        out = {}
         for cs in css:
-            nt, res = self._merged(cs, g, roles, gh.place(cs, g, roles, placed), events)
-            members[cs.t.id] = (nt, res)
-        out = {
-            i: (nt, res, events if i == roles.foreground else [])
-            for i, (nt, res) in members.items()
-        }
+            nt, res, moved = self._merged(cs, g, roles, gh.place(cs, g, roles, placed))
+            shared = events if cs.t.id == roles.foreground else []
+            out[cs.t.id] = (nt, res, [*moved, *shared])
         add_time(timing, "merge", clock)
         mem = None
         if c.box is not None:
@@ -441,10 +437,10 @@ class Dual:
         g: GroupBlob,
         roles: Roles,
         placement: tuple[tuple[float, float], Rule],
-        events: list[Event],
-    ) -> tuple[DualTarget, TargetResult]:
+    ) -> tuple[DualTarget, TargetResult, list[Event]]:
         """A member of a merged group at its placement: corrected there (or coasting, placed by
-        its motion), no model learning; lost once hidden too long (the event joins ``events``)."""
+        its motion), no model learning; lost once hidden too long. Returns its state, result and
+        the event of its status move (joining the group, or lost in it)."""
         gh = self.groups
         assert gh is not None
         t, c = cs.t, g.contour
@@ -456,9 +452,13 @@ class Dual:
         else:
             kf = self.motion.correct(cs.prior, out)
         status = self.lifecycle.merged_status(missing)
+        fg = t.id == roles.foreground
         if status == TargetStatus.LOST:
             kf = self.motion.stop(kf)
-            events += self.lifecycle.lost_in_group(t.id, t.status, missing)
+            moved = self.lifecycle.lost_in_group(t.id, t.status, missing)
+        else:
+            where = "in front" if fg else "hidden"
+            moved = self.lifecycle.joined(t.id, t.status, "+".join(f"T{k}" for k in g.ids), where)
         update = UpdateDecision(False, "merged")
         nt = dataclasses.replace(
             t,
@@ -470,7 +470,6 @@ class Dual:
             last_update=str(update),
             case=Case.MERGED.value,
         )
-        fg = t.id == roles.foreground
         res = TargetResult(
             t.id,
             out,
@@ -485,4 +484,4 @@ class Dual:
             {"prediction": cs.prior.box, "meanshift": cs.box1},
             decision=f"{Case.MERGED.value}:{rule.value}",
         )
-        return nt, res
+        return nt, res, moved
