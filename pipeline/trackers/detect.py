@@ -64,7 +64,7 @@ from pipeline.stages.detection import (
 from pipeline.stages.roi_match import image_likelihood, match_boxes
 from pipeline.tracker_config import DetectConfig
 from pipeline.trackers.base import CoreEngine, pick_channel, preferred_channel
-from pipeline.trackers.lifecycle import born, transition
+from pipeline.trackers.lifecycle import born, coast_ends, transition
 from pipeline.types import (
     BBox,
     Event,
@@ -460,16 +460,10 @@ class DetectAndAssociate:
         misses = t.misses + 1
         box = prior.box
         status = t.status
-        H, W = shape
         if status == TargetStatus.TENTATIVE:
             if frame - t.born + 1 >= a.confirm_window:
                 return None
-        elif (
-            misses > min(a.max_misses, a.coast_per_hit * t.hits)
-            or box.clip(W, H).area < 0.25 * box.area
-        ):
-            out = box.clip(W, H).area < 0.25 * box.area
-            why = "left the frame" if out else f"{misses} frames without a detection"
+        elif why := coast_ends(box, shape, misses, min(a.max_misses, a.coast_per_hit * t.hits)):
             ledger.events += transition(t.id, status, TargetStatus.LOST, why)
             status = TargetStatus.LOST
         elif status in (TargetStatus.TRACKING, TargetStatus.MERGED):

@@ -95,7 +95,7 @@ from pipeline.stages.occlusion import (
 )
 from pipeline.tracker_config import CamShiftConfig, KalmanCamShiftConfig
 from pipeline.trackers.base import pick_channel
-from pipeline.trackers.lifecycle import transition
+from pipeline.trackers.lifecycle import coast_ends, left_frame, transition
 from pipeline.types import (
     BBox,
     Event,
@@ -335,18 +335,12 @@ class KalmanCamShift:
         t: KCTarget,
         prior: kalman.GaussianState,
         outside: bool,
-        missing_run: int,
+        why: str | None,
     ) -> _Outcome:
-        """Coasting is bounded: a prediction that leaves the frame, or ``max_missing_frames``
-        frames without a measurement, end in ``lost``, where the motion stops."""
-        if o.status.is_occluded and (
-            outside or missing_run > self.cfg.occlusion.max_missing_frames
-        ):
-            why = (
-                "its prediction left the frame"
-                if outside
-                else f"{missing_run} frames without a measurement"
-            )
+        """Coasting is bounded (:func:`~pipeline.trackers.lifecycle.coast_ends`, ``why`` it ends):
+        a prediction that leaves the frame, or ``max_missing_frames`` frames without a
+        measurement, end in ``lost``, where the motion stops."""
+        if o.status.is_occluded and why is not None:
             kf = stop(prior)
             out = BBox.from_center(kf.box.cx, kf.box.cy, t.last_rect.w, t.last_rect.h)
             ev = (*o.events, *transition(t.id, t.status, TargetStatus.LOST, why))
@@ -418,7 +412,8 @@ class KalmanCamShift:
         o = self._outcome(grade, s, t, prior, severe_run, ocfg)
         h, w = image.shape[:2]
         missing_run = 0 if o.status == TargetStatus.TRACKING else t.missing_run + 1
-        o = self._bounded(o, t, prior, pbox.clip(w, h).area < 0.25 * pbox.area, missing_run)
+        why = coast_ends(pbox, (h, w), missing_run, self.cfg.occlusion.max_missing_frames)
+        o = self._bounded(o, t, prior, left_frame(pbox, (h, w)), why)
         o = self._onset(o, t, prior, s, frame, ocfg)
         history = t.history
         clean_match = s.d < 0.5 * ocfg.distance_threshold

@@ -27,13 +27,15 @@ an occlusion -> ``tracking``                 ``occlusion-end``   ``T3 visible ag
 ``occluded-severe`` -> ``occluded-partial``  none
 ===========================================  ==================  ==============================
 
-A target that is dropped before it was ever confirmed (a detector's tentative track failing M of
+A coast ends in ``lost`` by one rule in every engine (:func:`coast_ends`): the prediction left the
+frame, or too many frames went without a measurement. A target that is dropped before it was ever
+confirmed (a detector's tentative track failing M of
 N) leaves without a move: it was never reported. A new target enters with :func:`born`.
 """
 
 from __future__ import annotations
 
-from pipeline.types import Event, EventKind, TargetStatus
+from pipeline.types import BBox, Event, EventKind, TargetStatus
 
 S = TargetStatus
 
@@ -106,3 +108,37 @@ def _named(old: TargetStatus, new: TargetStatus) -> tuple[EventKind | None, str]
 def born(tid: int, why: str) -> tuple[Event, ...]:
     """The event of a new target ``tid`` (a detector's new track): ``T3 born (why)``."""
     return (Event(EventKind.BIRTH, f"T{tid} born ({why})", (tid,)),)
+
+
+def left_frame(box: BBox, shape: tuple[int, ...]) -> bool:
+    """Less than a quarter of ``box`` lies inside a frame of ``shape`` (H, W, ...): a coasting
+    target whose prediction this is has left the frame.
+
+    Examples
+    --------
+    >>> left_frame(BBox(-31, 0, 40, 10), (100, 100)), left_frame(BBox(-30, 0, 40, 10), (100, 100))
+    (True, False)
+    """
+    return box.clip(shape[1], shape[0]).area < 0.25 * box.area
+
+
+def coast_ends(prediction: BBox, shape: tuple[int, ...], missing: int, limit: int) -> str | None:
+    """Why a target coasting on ``prediction`` for ``missing`` frames without a measurement is
+    lost, or None while it may coast on: its prediction left the frame (:func:`left_frame`), or it
+    has gone more than ``limit`` frames without a measurement. Every engine's coast ends by this
+    rule (with its own ``limit``).
+
+    Examples
+    --------
+    >>> coast_ends(BBox(10, 10, 20, 20), (100, 100), 31, 30)
+    '31 frames without a measurement'
+    >>> coast_ends(BBox(96, 10, 20, 20), (100, 100), 1, 30)
+    'left the frame'
+    >>> coast_ends(BBox(10, 10, 20, 20), (100, 100), 30, 30) is None
+    True
+    """
+    if left_frame(prediction, shape):
+        return "left the frame"
+    if missing > limit:
+        return f"{missing} frames without a measurement"
+    return None

@@ -137,3 +137,35 @@ def test_kalman_camshift_log_follows_its_statuses(scene):
 
 def test_meanshift_log_follows_its_statuses(scene):
     _check_log(track(scene("occluded-moving"), tracker="meanshift"))
+
+
+@pytest.mark.parametrize(
+    ("x", "missing", "why"),
+    [
+        (10.0, 30, None),  # in view, at the limit
+        (10.0, 31, "31 frames without a measurement"),
+        (-30.0, 1, None),  # a quarter of it still in view
+        (-31.0, 1, "left the frame"),
+        (-31.0, 99, "left the frame"),  # the frame's edge is named first
+    ],
+)
+def test_coast_ends_by_one_rule(x, missing, why):
+    from pipeline.trackers.lifecycle import coast_ends
+    from pipeline.types import BBox
+
+    assert coast_ends(BBox(x, 0.0, 40.0, 10.0), (100, 100), missing, 30) == why
+
+
+def test_engines_lose_a_target_for_the_same_reasons(scene):
+    """On the meet-and-part scene the detector loses a track for its misses and Kalman-CAMShift
+    loses both walkers at the frame's edge; every loss is worded by the one rule."""
+    import re
+
+    d = scene("meet-part")
+    words = re.compile(r"^T\d+ lost \((left the frame|\d+ frames without a measurement)\)$")
+    reasons = set()
+    for tracker in ("detect", "kalman-camshift"):
+        texts = [e.text for r in track(d, tracker=tracker) for e in r.events if e.kind == K.LOST]
+        assert texts and all(words.match(t) for t in texts), (tracker, texts)
+        reasons |= {words.match(t)[1].split()[-1] for t in texts}
+    assert reasons == {"frame", "measurement"}

@@ -20,6 +20,7 @@ from pipeline.trackers.dual.colour import ColourStep, add_time
 from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule, needs_background
 from pipeline.trackers.dual.redetect import step_speed
 from pipeline.trackers.dual.state import BackgroundSource, DualTarget
+from pipeline.trackers.lifecycle import left_frame
 from pipeline.types import BBox, Event, EventKind, TargetResult, TargetStatus
 
 if TYPE_CHECKING:
@@ -27,11 +28,6 @@ if TYPE_CHECKING:
 
 Size = tuple[float, float]
 NAN = math.nan
-
-
-def outside(box: BBox, shape: tuple[int, ...]) -> bool:
-    """Less than a quarter of the box lies inside the frame."""
-    return box.clip(shape[1], shape[0]).area < 0.25 * box.area
 
 
 @dataclass(frozen=True)
@@ -201,7 +197,7 @@ def evidence(
         rho_contour=rhos[0],
         rho_appearance=rhos[1],
         last=t.box,
-        outside=outside(prior.box, frames.shape),
+        outside=left_frame(prior.box, frames.shape),
         prior_std_px=(math.sqrt(float(prior.P[0, 0])), math.sqrt(float(prior.P[1, 1]))),
         contour_checked=dual.contour.cfg.checks,
         speed_px=t.speed,
