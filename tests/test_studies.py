@@ -87,6 +87,7 @@ def _tool(name: str):
 
     spec = importlib.util.spec_from_file_location(name, ROOT / "tools" / f"{name}.py")
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod  # a dataclass in the tool looks its module up there
     spec.loader.exec_module(mod)
     return mod
 
@@ -251,3 +252,18 @@ def test_profile_tracker_counts_the_numba_kernels_as_compiled(tmp_path):
     ms, compiled = r["parts"]["level set"]
     assert r["frames"] == 39 and ms > 0 and compiled / ms >= 0.6, r["parts"]
     assert "| level set |" in mod.table({"shadows": r})
+
+
+def test_failure_onsets_find_the_first_sustained_run():
+    """``failure_modes --onsets``: the first run of N failed, visible frames of each target, with
+    the decisions before and at it; a hidden frame (class None) breaks a run."""
+    fm = _tool("failure_modes")
+    ok, drift = None, "drift"
+    seq = {
+        1: [(1, ok, "init:given"), (2, drift, "a"), (3, drift, "b"), (4, ok, "c")]
+        + [(5 + k, drift, f"d{k}") for k in range(3)],
+        2: [(1, ok, "init:given"), (2, drift, "x"), (3, None, "y"), (4, drift, "z")],
+    }
+    (o,) = fm._onsets("s", seq, {1: 0.4, 2: 1.0}, run=3)
+    assert (o.target, o.frame, o.cls, o.before, o.at) == (1, 5, "drift", "c", "d0")
+    assert (o.first_visibility, o.failed) == (0.4, 5)

@@ -25,6 +25,13 @@ IoU < 0.5 with the truth is put in the first class that applies:
 
 Prints one table row per scene (the worst ``--worst`` first) and the totals, as shares of all
 target-frames with truth.
+
+``--onsets N`` also lists the N targets that fail longest, each at the onset of its first
+sustained failure (``--run`` consecutive failed frames, default 10, the target at least 0.25
+visible on each): the frame, the class there, the tracker's decision on the frame before and at
+the onset, and the target's visibility on frame 1 (a first box partly hidden, or holding another
+object, is where a filter can learn the wrong thing). Failures that begin at a track's start read
+differently from drifts late in a crossing; this is where to look before changing a rule.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ import argparse
 import csv
 import json
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -56,8 +64,26 @@ def centre_distance(a: Box, b: Box) -> float:
     return float(np.hypot(a[0] + a[2] / 2 - b[0] - b[2] / 2, a[1] + a[3] / 2 - b[1] - b[3] / 2))
 
 
-def scene_failures(scene_dir: Path, run_dir: Path) -> tuple[Counter, int]:
-    """(failed target-frames per class, target-frames with truth) of one run."""
+@dataclass(frozen=True)
+class Onset:
+    """A target's first sustained failure in one run (see ``--onsets``)."""
+
+    scene: str
+    target: int
+    frame: int
+    cls: str
+    before: str  # the decision on the frame before the onset
+    at: str  # the decision at the onset
+    first_visibility: float
+    failed: int  # the target's failed target-frames in the run, sustained or not
+
+
+def scene_failures(
+    scene_dir: Path, run_dir: Path, run: int = 10
+) -> tuple[Counter, int, list[Onset]]:
+    """(failed target-frames per class, target-frames with truth, each target's first sustained
+    failure: ``run`` consecutive failed frames with the target at least 0.25 visible) of one
+    run."""
     meta = json.loads((scene_dir / "scene.json").read_text())
     gen = meta.get("generator") or {}
     targets = tuple(gen["targets"]) if gen.get("targets") else None
@@ -65,40 +91,72 @@ def scene_failures(scene_dir: Path, run_dir: Path) -> tuple[Counter, int]:
     frames = int(gen.get("frames") or meta["frames"])
     drawn = draw_scene(int(meta["seed"]), targets, int(size[0]), int(size[1]), frames)
     renderer = Renderer(drawn.scene, drawn.render_seed)
-    out: dict[tuple[int, int], tuple[str, tuple[float, float, float, float]]] = {}
+    out: dict[tuple[int, int], tuple[str, tuple[float, float, float, float], str]] = {}
     with open(run_dir / "targets.csv") as fh:
         for r in csv.DictReader(fh):
             box = tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
-            out[(int(r["frame"]), int(r["id"]))] = (r["status"], box)
+            out[(int(r["frame"]), int(r["id"]))] = (r["status"], box, r.get("decision", ""))
     counts: Counter = Counter()
     total = 0
+    # per target: (frame, class or None when on the target or hidden, decision)
+    seq: dict[int, list[tuple[int, str | None, str]]] = {}
+    first_vis: dict[int, float] = {}
     for t in range(1, drawn.scene.n_frames + 1):
         f = renderer.render_frame(t)
         others = [b for b in (f.others or {}).values() if b is not None]
         for tid, truth in f.truth_visible.items():
+            if t == 1:
+                first_vis[tid] = float(f.visibility.get(tid, 0.0))
             if truth is None:
                 continue
             total += 1
-            status, box = out.get((t, tid), ("lost", (0.0, 0.0, 0.0, 0.0)))
-            shown = status != "lost"
-            if shown and iou(box, truth) >= 0.5:
-                continue
-            rivals = [b for j, b in f.truth_visible.items() if j != tid and b is not None] + others
-            if f.visibility.get(tid, 0.0) < 0.25:
-                counts["hidden"] += 1
-            elif shown and any(
-                iou(box, b) >= 0.3 and iou(box, b) > iou(box, truth) for b in rivals
-            ):
-                counts["on-other"] += 1
-            elif not shown:
-                counts["lost"] += 1
-            elif status.startswith("occluded"):
-                counts["coasting"] += 1
-            elif centre_distance(box, truth) <= 20:
-                counts["size"] += 1
-            else:
-                counts["drift"] += 1
-    return counts, total
+            status, box, decision = out.get((t, tid), ("lost", (0.0, 0.0, 0.0, 0.0), ""))
+            cls = _failure(status, box, truth, f, tid, others)
+            if cls is not None:
+                counts[cls] += 1
+            seq.setdefault(tid, []).append((t, None if cls == "hidden" else cls, decision))
+    return counts, total, _onsets(scene_dir.name, seq, first_vis, run)
+
+
+def _failure(status, box, truth, f, tid, others) -> str | None:
+    """The class of a target-frame (None: on the target, IoU >= 0.5)."""
+    shown = status != "lost"
+    if shown and iou(box, truth) >= 0.5:
+        return None
+    rivals = [b for j, b in f.truth_visible.items() if j != tid and b is not None] + others
+    if f.visibility.get(tid, 0.0) < 0.25:
+        return "hidden"
+    if shown and any(iou(box, b) >= 0.3 and iou(box, b) > iou(box, truth) for b in rivals):
+        return "on-other"
+    if not shown:
+        return "lost"
+    if status.startswith("occluded"):
+        return "coasting"
+    if centre_distance(box, truth) <= 20:
+        return "size"
+    return "drift"
+
+
+def _onsets(
+    scene: str,
+    seq: dict[int, list[tuple[int, str | None, str]]],
+    first_vis: dict[int, float],
+    run: int,
+) -> list[Onset]:
+    """Each target's first run of ``run`` consecutive failed, visible frames."""
+    found = []
+    for tid, frames in seq.items():
+        failed = [c is not None for _, c, _ in frames]
+        for i in range(len(frames) - run + 1):
+            if all(failed[i : i + run]):
+                before = frames[i - 1][2] if i > 0 else ""
+                f, cls, at = frames[i]
+                assert cls is not None
+                found.append(
+                    Onset(scene, tid, f, cls, before, at, first_vis.get(tid, 1.0), sum(failed))
+                )
+                break
+    return found
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -106,15 +164,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("root", type=Path)
     ap.add_argument("--tracker", default="dual")
     ap.add_argument("--worst", type=int, default=10)
+    ap.add_argument("--onsets", type=int, default=0, metavar="N")
+    ap.add_argument("--run", type=int, default=10, metavar="FRAMES")
     a = ap.parse_args(argv)
     rows = []
+    onsets: list[Onset] = []
     grand: Counter = Counter()
     n_all = 0
     for scene_dir in sorted((a.root / "scenes").iterdir()):
         run_dir = a.root / "runs" / a.tracker / scene_dir.name
         if not (run_dir / "targets.csv").is_file():
             continue
-        c, n = scene_failures(scene_dir, run_dir)
+        c, n, o = scene_failures(scene_dir, run_dir, a.run)
+        onsets += o
         grand.update(c)
         n_all += n
         rows.append((sum(c.values()) / max(n, 1), scene_dir.name, c, n))
@@ -128,7 +190,25 @@ def main(argv: list[str] | None = None) -> int:
         + " | ".join(f"{grand[k] / max(n_all, 1):.3f}" for k in CLASSES)
         + " |"
     )
+    if a.onsets > 0:
+        _print_onsets(onsets, a.onsets, a.run)
     return 0
+
+
+def _print_onsets(onsets: list[Onset], n: int, run: int) -> None:
+    early = sum(o.frame <= run for o in onsets)
+    print(
+        f"\n{len(onsets)} targets fail for {run}+ frames in view; {early} of them from within "
+        f"the first {run} frames. The {min(n, len(onsets))} that fail longest:\n"
+    )
+    head = ("scene", "target", "onset", "class", "before", "at", "vis. 1", "failed")
+    print("| " + " | ".join(head) + " |")
+    print("|" + "---|" * len(head))
+    for o in sorted(onsets, key=lambda o: -o.failed)[:n]:
+        print(
+            f"| {o.scene} | {o.target} | {o.frame} | {o.cls} | {o.before} | {o.at} | "
+            f"{o.first_visibility:.2f} | {o.failed} |"
+        )
 
 
 if __name__ == "__main__":
