@@ -208,6 +208,32 @@ class EventKind(enum.StrEnum):
 
 
 @dataclass(frozen=True, slots=True)
+class DecisionLabel:
+    """A tracker's decision in one frame, as the tracker's own enums: its case (what was measured,
+    or that nothing was) and the rule that chose it, and ``why``, the rule's text with its details
+    filled in (a contour's reason, a count of frames). ``str()`` is ``case:why``, as
+    ``targets.csv`` and the recording write it.
+
+    Examples
+    --------
+    >>> class Case(enum.StrEnum):
+    ...     COAST = "coast"
+    >>> class Rule(enum.StrEnum):
+    ...     NO_EVIDENCE = "no-evidence"
+    >>> d = DecisionLabel(Case.COAST, Rule.NO_EVIDENCE, "no-evidence")
+    >>> str(d), d.case is Case.COAST
+    ('coast:no-evidence', True)
+    """
+
+    case: enum.StrEnum
+    rule: enum.StrEnum
+    why: str
+
+    def __str__(self) -> str:
+        return f"{self.case.value}:{self.why}"
+
+
+@dataclass(frozen=True, slots=True)
 class Event:
     """Something that happened at a frame (merge, split, lost, ...)."""
 
@@ -253,9 +279,9 @@ class TargetResult:
         Named scalar diagnostics (``d``, ``area_px2``, ...).
     overlays : Mapping[str, BBox]
         Named auxiliary boxes to draw (``prediction``, ``search``), frame px.
-    decision : str
-        The tracker's decision for this frame and why, ``case:why``
-        (``contour:contour-and-appearance``); empty for trackers without one.
+    decision : DecisionLabel or None
+        The tracker's decision for this frame (its case and rule as enums, and why; written
+        ``case:why``, ``contour:contour-and-appearance``); None for trackers without one.
 
     Examples
     --------
@@ -275,7 +301,7 @@ class TargetResult:
     contour: tuple[Points, ...] = ()
     diagnostics: Mapping[str, float] = field(default_factory=dict)
     overlays: Mapping[str, BBox] = field(default_factory=dict)
-    decision: str = ""
+    decision: DecisionLabel | None = None
 
     def replace(self, **changes: object) -> TargetResult:
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]

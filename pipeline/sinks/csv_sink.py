@@ -105,7 +105,7 @@ class CsvSink:
                     _num(t.rho) if not math.isnan(t.rho) else "",
                     t.model_update,
                     _pairs(t.diagnostics),
-                    t.decision,
+                    "" if t.decision is None else str(t.decision),
                 ]
             )
 

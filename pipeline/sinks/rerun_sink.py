@@ -301,9 +301,10 @@ class RerunSink:
             if self._status.get(t.id) != t.status:
                 self._status[t.id] = t.status
                 self._buf[f"targets/{t.id}/status"].append((f, t.status.value))
-            if t.decision and self._decision.get(t.id) != t.decision:
-                self._decision[t.id] = t.decision
-                self._buf[f"targets/{t.id}/decision"].append((f, t.decision))
+            text = "" if t.decision is None else str(t.decision)
+            if text and self._decision.get(t.id) != text:
+                self._decision[t.id] = text
+                self._buf[f"targets/{t.id}/decision"].append((f, text))
         for ev in result.events:
             self._buf["events"].append((f, f"[{ev.kind.value}] {ev.text}", ev.kind.value))
         if truth is not None:

@@ -169,3 +169,21 @@ def test_engines_lose_a_target_for_the_same_reasons(scene):
         assert texts and all(words.match(t) for t in texts), (tracker, texts)
         reasons |= {words.match(t)[1].split()[-1] for t in texts}
     assert reasons == {"frame", "measurement"}
+
+
+def test_decisions_reach_the_sinks_as_enums(scene, tmp_path):
+    """Every dual result carries its decision's case and rule as the decider's enums, and
+    ``targets.csv`` writes ``case:why`` from them."""
+    import csv
+
+    from pipeline.run import RunOptions, run_track
+    from pipeline.trackers.dual.decide import Case, Rule
+
+    d = scene("crossing2")
+    res = track(d, tracker="dual")
+    labels = [t.decision for r in res for t in r.targets]
+    assert all(isinstance(x.case, Case) and isinstance(x.rule, Rule) for x in labels)
+    assert {x.case for x in labels} >= {Case.INIT, Case.CONTOUR}
+    out = run_track(d, RunOptions(tracker="dual", out_dir=tmp_path / "r")).out_dir
+    rows = list(csv.DictReader((out / "targets.csv").read_text().splitlines()))
+    assert [r["decision"] for r in rows] == [str(x) for x in labels]

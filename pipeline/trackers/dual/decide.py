@@ -60,7 +60,7 @@ from dataclasses import dataclass
 from pipeline.stages.contour import ContourReason
 from pipeline.tracker_config import DeciderConfig
 from pipeline.trackers.dual.state import held
-from pipeline.types import BBox, TargetStatus
+from pipeline.types import BBox, DecisionLabel, TargetStatus
 
 __all__ = [
     "MISSING",
@@ -195,9 +195,14 @@ class Decision:
         return held(self.status, self.partial)
 
     @property
+    def label(self) -> DecisionLabel:
+        """The case and rule with why, as the result carries them to the sinks."""
+        return DecisionLabel(self.case, self.rule, self.why)
+
+    @property
     def text(self) -> str:
         """``case:why``, as ``targets.csv``'s ``decision`` column writes it."""
-        return f"{self.case.value}:{self.why}"
+        return str(self.label)
 
 
 def decision(

@@ -446,7 +446,7 @@ def result(
         c.contour if shown and c is not None else (),
         diagnostics(m, missing, rho2),
         overlays,
-        decision=d.text,
+        decision=d.label,
     )
 
 

@@ -33,6 +33,7 @@ from pipeline.trackers.dual.size import ExtentCue, SizeModel
 from pipeline.trackers.dual.state import BackgroundSource, DualState, DualTarget, GroupMemory
 from pipeline.types import (
     BBox,
+    DecisionLabel,
     Event,
     FrameResult,
     InitTarget,
@@ -193,7 +194,7 @@ class Dual:
                     "none:init",
                     1.0,
                     c.contour if c is not None else (),
-                    decision=f"{Case.INIT.value}:{Rule.GIVEN.value}",
+                    decision=DecisionLabel(Case.INIT, Rule.GIVEN, Rule.GIVEN.value),
                 )
             )
         return DualState(tuple(states), mode, background=background), FrameResult(
@@ -482,6 +483,6 @@ class Dual:
             c.contour if fg else (),
             gh.diagnostics(cs, g, roles, missing),
             {"prediction": cs.prior.box, "meanshift": cs.box1},
-            decision=f"{Case.MERGED.value}:{rule.value}",
+            decision=DecisionLabel(Case.MERGED, rule, rule.value),
         )
         return nt, res, moved
