@@ -132,8 +132,9 @@ class MeanShift:
         new_targets, results, events = [], [], []
         for t in state.targets:
             nt, r = self.track_target(image, t)
-            why = "no model colour in the window" if nt.status.is_occluded else "colour found"
-            events += transition(t.id, t.status, nt.status, why)
+            if nt.status != t.status:
+                why = "no model colour in the window" if nt.status.is_occluded else "colour found"
+                events += transition(t.id, t.status, nt.status, why)
             new_targets.append(nt)
             results.append(r)
         dt = time.perf_counter() - t0

@@ -102,8 +102,9 @@ class CamShiftEngine:
                     box = BBox(*window)
                 new_status = TargetStatus.TRACKING
                 keep = BBox(*new_window).to_cv(w, h)
-            why = "CamShift window collapsed" if new_status.is_occluded else "CamShift window"
-            events += transition(tid, status, new_status, why)
+            if new_status != status:
+                why = "CamShift window collapsed" if new_status.is_occluded else "CamShift window"
+                events += transition(tid, status, new_status, why)
             self.targets[tid] = (hist, keep, new_status)
             out.append(
                 TargetResult(
@@ -183,11 +184,15 @@ class OpenCVEngine:
             ok, rect = tr.update(img)  # type: ignore[attr-defined]
             if ok and rect[2] > 0 and rect[3] > 0:
                 box, new_status = BBox(*map(float, rect)), TargetStatus.TRACKING
-                why = f"{self.kind} reported the target"
             else:
                 box, new_status = last, TargetStatus.LOST
-                why = f"{self.kind} reported failure"
-            events += transition(tid, status, new_status, why)
+            if new_status != status:
+                why = (
+                    "reported the target"
+                    if new_status == TargetStatus.TRACKING
+                    else "reported failure"
+                )
+                events += transition(tid, status, new_status, f"{self.kind} {why}")
             self.trackers[tid] = (tr, box, new_status)
             out.append(TargetResult(tid, box, new_status, f"opencv-{self.kind}"))
         return FrameResult(

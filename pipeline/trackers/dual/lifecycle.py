@@ -61,6 +61,8 @@ class Lifecycle:
         (:func:`pipeline.trackers.lifecycle.transition`), the decision's reason in brackets (and
         the contour's at an occlusion's start)."""
         new = d.status
+        if new == old:
+            return []
         why = d.why
         if new == TargetStatus.LOST:
             why = d.why.replace("-", " ")

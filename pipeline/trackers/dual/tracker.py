@@ -53,11 +53,11 @@ def _reach(m: single.Measured) -> float:
 
 
 def _measured_boxes(
-    alone: dict[int, tuple[single.Measured, list[Event]]], leave_out: set[int] | None = None
+    alone: dict[int, single.Measured], leave_out: set[int] | None = None
 ) -> dict[int, BBox]:
     """The measurements of the targets (but ``leave_out``) that have one."""
     out = {}
-    for i, (m, _) in alone.items():
+    for i, m in alone.items():
         if m.decision.box is not None and i not in (leave_out or ()):
             out[i] = m.decision.box
     return out
@@ -244,9 +244,9 @@ class Dual:
             for i, cs in steps.items()
             if i not in done
         }
-        for i, (m, ev) in self._one_object_one_target(alone).items():
+        for i, m in self._one_object_one_target(alone).items():
             others = tuple(b for j, b in live.items() if j != i)
-            done[i] = single.update(self, frames, m, state.mode, timing, ev, others)
+            done[i] = single.update(self, frames, m, state.mode, timing, None, others)
         new, results, events = [], [], []
         for t in state.targets:
             nt, r, ev = done[t.id]
@@ -293,18 +293,18 @@ class Dual:
         cs: ColourStep,
         state: DualState,
         timing: dict[str, float],
-    ) -> tuple[single.Measured, list[Event]]:
+    ) -> single.Measured:
         """The cues and decision of a target in no group this frame; one whose group dissolved
         without a visible split starts again from its prediction (its move out of ``merged`` is
         the lifecycle's ``split`` event, with the decision that took it)."""
         start = None
         if cs.t.status == TargetStatus.MERGED and cs.t.case == Case.MERGED.value:
             start = cs.box_prior.center
-        return single.measure(self, frames, cs, state.mode, timing, start, state.background), []
+        return single.measure(self, frames, cs, state.mode, timing, start, state.background)
 
     def _one_object_one_target(
-        self, alone: dict[int, tuple[single.Measured, list[Event]]]
-    ) -> dict[int, tuple[single.Measured, list[Event]]]:
+        self, alone: dict[int, single.Measured]
+    ) -> dict[int, single.Measured]:
         """The frame-level step after every target's own decision: where two targets'
         measurements land on one object (:meth:`Decider.shared`), one keeps it
         (:meth:`Decider.owner_of`) and the other learns nothing, merged with it or coasting
@@ -317,32 +317,29 @@ class Dual:
         for i, j in self._shared_pairs(alone):
             if i in yielded or j in yielded:
                 continue
-            owner, other = self._settle(i, j, out[i][0], out[j][0])
+            owner, other = self._settle(i, j, out[i], out[j])
             out[other] = self._yield(out[other], owner)
             yielded.add(other)
         for i, j in self._inside_pairs(out, yielded):
             if i not in yielded and j not in yielded:
-                other_box = out[j][0].decision.box
+                other_box = out[j].decision.box
                 assert other_box is not None
-                on = self.decider.lies_in(out[i][0].evidence.prior, other_box)
+                on = self.decider.lies_in(out[i].evidence.prior, other_box)
                 out[i] = self._yield(out[i], j, on)
                 yielded.add(i)
         return out
 
-    def _yield(
-        self, mine: tuple[single.Measured, list[Event]], owner: int, on: bool | None = None
-    ) -> tuple[single.Measured, list[Event]]:
+    def _yield(self, m: single.Measured, owner: int, on: bool | None = None) -> single.Measured:
         """A target whose measurement target ``owner`` takes: merged where its own prediction
         lies on the object too (``on``; by default :meth:`Decider.yields` tests the overlap),
         else coasting; it learns nothing."""
-        m, ev = mine
         box = m.decision.box
         assert box is not None
         d = self.decider.yields(owner, box, m.evidence.prior, on)
-        return dataclasses.replace(m, decision=self.lifecycle.settle(d, m.evidence)), ev
+        return dataclasses.replace(m, decision=self.lifecycle.settle(d, m.evidence))
 
     def _inside_pairs(
-        self, alone: dict[int, tuple[single.Measured, list[Event]]], yielded: set[int]
+        self, alone: dict[int, single.Measured], yielded: set[int]
     ) -> list[tuple[int, int]]:
         """``(i, j)``: target ``i``'s measurement lies on target ``j`` and its colour says it is
         not ``i`` (:meth:`Decider.on_other`); the worst colour match first."""
@@ -351,7 +348,7 @@ class Dual:
         boxes = _measured_boxes(alone, yielded)
         if len(boxes) < 2:
             return []
-        rho = {i: self._match(alone[i][0]) for i in boxes}
+        rho = {i: self._match(alone[i]) for i in boxes}
         pairs = sorted(
             (rho[i], i, j)
             for i, a in boxes.items()
@@ -360,9 +357,7 @@ class Dual:
         )
         return [(i, j) for _, i, j in pairs]
 
-    def _shared_pairs(
-        self, alone: dict[int, tuple[single.Measured, list[Event]]]
-    ) -> list[tuple[int, int]]:
+    def _shared_pairs(self, alone: dict[int, single.Measured]) -> list[tuple[int, int]]:
         """The pairs of measured targets whose boxes are one object, most overlapping first."""
         boxes = _measured_boxes(alone)
         pairs = sorted(
