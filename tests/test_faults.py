@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -384,30 +385,38 @@ def test_bench_reports_failed_sequences_and_prints_the_rest(tmp_path):
     _only_line(r.stderr, "1 of 2 runs failed", "bad", "00003.jpg")  # and says so on stderr
 
 
-@pytest.fixture(scope="module")
-def interpreter_start_s() -> float:
-    """How long this machine's interpreter takes to start (``site`` and the editable install's
-    finder included) and to import the entry module that takes the signals (``pipeline._entry``,
-    standard library only), before which a signal is the operating system's: the slowest of
-    five, with half again as a margin for a loaded machine."""
-    took = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        subprocess.run([PY, "-c", "import pipeline._entry"], check=True)
-        took.append(time.perf_counter() - t0)
-    return 1.5 * max(took)
+def _wait_until_our_code_runs(proc: subprocess.Popen, timeout: float = 60) -> None:
+    """Return once the process has taken SIGTERM (``pipeline._entry`` takes SIGINT, then
+    SIGTERM, before anything else runs): read from the kernel's caught-signal mask in
+    ``/proc/PID/status``, so a loaded machine's slow interpreter start cannot make a signal
+    arrive while it is still the operating system's. Where ``/proc`` is missing, a generous
+    fixed wait stands in."""
+    status = Path(f"/proc/{proc.pid}/status")
+    if not status.exists():
+        time.sleep(3.0)
+        return
+    bit = 1 << (signal.SIGTERM - 1)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        assert proc.poll() is None, proc.communicate()
+        m = re.search(r"^SigCgt:\s*([0-9a-fA-F]+)", status.read_text(), re.M)
+        if m and int(m.group(1), 16) & bit:
+            return
+        time.sleep(0.001)
+    raise AssertionError("the command never took SIGTERM")
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 @pytest.mark.parametrize("after_start_s", [0.0, 0.05, 0.3, 0.8])
 def test_a_signal_from_the_first_instant_is_an_interruption(
-    tmp_path, long_scene, interpreter_start_s, sig, after_start_s
+    tmp_path, long_scene, sig, after_start_s
 ):
     """Ctrl-C or SIGTERM from the moment our code runs (importing, reading the sequence) or
     while tracking: one line, ``interrupted``, exit 130; never a traceback, never 143. (Before
     the interpreter has started, a signal is the operating system's: ``pipeline._entry``.)"""
     p = _start("track", long_scene, "--tracker", "mil", "--out", tmp_path / "run")
-    time.sleep(interpreter_start_s + after_start_s)
+    _wait_until_our_code_runs(p)
+    time.sleep(after_start_s)
     p.send_signal(sig)
     _out, err = p.communicate(timeout=120)
     assert p.returncode == 130, (p.returncode, err)
