@@ -25,7 +25,10 @@ dormant one still resumes; the run says so in one line and in ``summary.json`` (
 
 Statuses: ``tentative`` (not yet confirmed; in targets.csv, not in tracks.csv),
 ``tracking``, ``merged`` (not detected on its own but its prediction lies inside a detected
-blob: it coasts inside that blob, and the blob starts no new track), ``occluded-severe``
+blob: it is measured where its template matches inside the blob, the blob's members placed
+together by :func:`pipeline.stages.blob.place_members`, source ``blob-match``; or, found
+nowhere well, it coasts inside the blob, source ``kalman-in-blob``; the blob starts no new
+track), ``occluded-severe``
 (confirmed, coasting with no detection near), ``lost`` (the frame it is given up, then
 dropped). :func:`detect_init` gives the other trackers their
 initial targets from the first frames (``dualtrack track --detect``).
@@ -45,7 +48,7 @@ import numpy as np
 
 from pipeline.io.sequence import FramePair
 from pipeline.io.sequence import Sequence as FrameSequence
-from pipeline.stages import kalman
+from pipeline.stages import blob, kalman
 from pipeline.stages.association import (
     AssociationConfig,
     Associator,
@@ -161,6 +164,7 @@ class FrameMatch:
     matched: dict[int, int]
     unmatched: tuple[int, ...]
     background: Background | None
+    placed: dict[int, blob.Placement] = dataclasses.field(default_factory=dict)
 
 
 class _Ledger:
@@ -269,6 +273,9 @@ class DetectAndAssociate:
         finite = np.where(np.isfinite(cost), cost, 1e9)
         assignment = ASSOCIATORS[a.associator](finite, miss, new)
         timing["association"] = time.perf_counter() - t2
+        t3 = time.perf_counter()
+        placed = self.place(state.tracks, priors, regions, sorted(group), grey)
+        timing["blobs"] = time.perf_counter() - t3
         return FrameMatch(
             grey,
             regions,
@@ -280,7 +287,45 @@ class DetectAndAssociate:
             dict(assignment.pairs),
             tuple(assignment.unmatched_detections),
             found.background,
+            placed,
         )
+
+    def place(
+        self,
+        tracks: Sequence[DetTrack],
+        priors: Sequence[kalman.GaussianState],
+        regions: Sequence[Region],
+        blobs: Sequence[int],
+        grey: np.ndarray,
+    ) -> dict[int, blob.Placement]:
+        """``{track: placement}`` of the confirmed tracks inside the merged blobs ``blobs``
+        (indices into ``regions``), each blob's members placed jointly
+        (:func:`pipeline.stages.blob.place_members`); tracks found nowhere well are left out."""
+        a = self.cfg.association
+        if not a.place_in_blobs or not blobs:
+            return {}
+        Hm, Rm = kalman.measurement_model(self.kalman)
+        out: dict[int, blob.Placement] = {}
+        for j in blobs:
+            box = regions[j].box
+            idx = [
+                i
+                for i, (t, p) in enumerate(zip(tracks, priors, strict=True))
+                if t.status != TargetStatus.TENTATIVE and _contains(box, p.x[:2])
+            ]
+            members: list[blob.Member | None] = []
+            for i in idx:
+                patch = blob.template_patch(tracks[i].template, tracks[i].template_box)
+                S = (Hm @ priors[i].P @ Hm.T + Rm)[:2, :2]
+                c = (float(priors[i].x[0]), float(priors[i].x[1]))
+                members.append(None if patch is None else blob.Member(patch, c, S))
+            found = blob.place_members(
+                grey, box, members, gate_chi2=a.gate_chi2, min_correlation=a.blob_min_correlation
+            )
+            for i, p in zip(idx, found, strict=True):
+                if p is not None and i not in out:
+                    out[i] = p
+        return out
 
     def pair_costs(
         self,
@@ -342,11 +387,12 @@ class DetectAndAssociate:
             t.status != TargetStatus.TENTATIVE
             and (k := _blob_containing(prior, fm.regions)) is not None
         ):
+            p = fm.placed.get(i)
             nt, diag, rho, source = (
-                self._in_blob(t, prior, fm.regions[k], ledger),
+                self._in_blob(t, prior, fm.regions[k], ledger, p),
                 {},
-                math.nan,
-                "kalman-in-blob",
+                math.nan if p is None else p.correlation,
+                "kalman-in-blob" if p is None else "blob-match",
             )
         else:
             nt = self._coasting(t, prior, fm.grey.shape, frame, ledger)
@@ -428,13 +474,27 @@ class DetectAndAssociate:
         return dataclasses.replace(t, id=old.id)
 
     def _in_blob(
-        self, t: DetTrack, prior: kalman.GaussianState, r: Region, ledger: _Ledger
+        self,
+        t: DetTrack,
+        prior: kalman.GaussianState,
+        r: Region,
+        ledger: _Ledger,
+        placed: blob.Placement | None = None,
     ) -> DetTrack:
         """A confirmed track not detected on its own but inside a detected blob: merged with
-        another target, it coasts inside the blob (lost after ``max_merged_frames``)."""
-        c = _inside(prior.x[:2], (float(prior.x[2]), float(prior.x[3])), r.box)
-        w, h = max(float(prior.x[2]), 1.0), max(float(prior.x[3]), 1.0)
-        box = BBox.from_center(c[0], c[1], w, h)
+        another target, it is measured where its template placed it in the blob (``placed``,
+        its template not learning), else coasts inside the blob (lost after
+        ``max_merged_frames``)."""
+        kf = prior
+        if placed is not None:
+            Hm, Rm = kalman.measurement_model(self.kalman)
+            z = kalman.box_measurement(placed.box)
+            kf = kalman.correct(prior, z, Hm, Rm, self.kalman).state
+            box = placed.box
+        else:
+            c = _inside(prior.x[:2], (float(prior.x[2]), float(prior.x[3])), r.box)
+            w, h = max(float(prior.x[2]), 1.0), max(float(prior.x[3]), 1.0)
+            box = BBox.from_center(c[0], c[1], w, h)
         misses = t.misses + 1
         status = TargetStatus.MERGED
         if t.status != TargetStatus.MERGED:
@@ -444,7 +504,7 @@ class DetectAndAssociate:
             why = f"{misses} frames inside a merged blob"
             ledger.events += transition(t.id, status, TargetStatus.LOST, why)
             status = TargetStatus.LOST
-        return dataclasses.replace(t, kf=prior, box=box, status=status, misses=misses)
+        return dataclasses.replace(t, kf=kf, box=box, status=status, misses=misses)
 
     def _coasting(
         self,

@@ -283,3 +283,30 @@ def test_the_tracker_uses_the_visible_channel_s_regions_only_on_request(
         assert boxes[0].cx == pytest.approx(10 + 75 + 5, abs=3) and boxes[0].cy == pytest.approx(
             62, abs=3
         )
+
+
+def test_members_of_a_blob_are_placed_by_their_templates_on_request(scene, tmp_path):
+    """``association.place_in_blobs``: on crossing2 the two walkers' shared blob yields both,
+    each measured where its template matches (source ``blob-match``, status ``merged``) within
+    a few pixels of its truth, and the identities hold through the crossing."""
+    from pipeline.config import load_config
+
+    cfg = load_config(None, ["detect.association.place_in_blobs=true"])
+    res = run_track(
+        scene("crossing2"),
+        RunOptions(tracker="detect", out_dir=tmp_path / "r", rrd=False, plots=False, config=cfg),
+    )
+    assert res.summary["metrics"]["idf1"] >= 0.9
+    table = list(csv.DictReader((tmp_path / "r" / "targets.csv").read_text().splitlines()))
+    placed = [r for r in table if r["source"] == "blob-match"]
+    assert len(placed) >= 10 and {r["status"] for r in placed} == {"merged"}
+    frames = {int(r["frame"]) for r in placed}
+    both = [f for f in frames if sum(int(r["frame"]) == f for r in placed) == 2]
+    assert both  # a blob around two tracked targets yields both
+    gt = np.loadtxt(scene("crossing2") / "gt.txt", delimiter=",", ndmin=2)
+    for r in placed:
+        f = int(r["frame"])
+        cx = float(r["x_px"]) + float(r["w_px"]) / 2
+        truth = gt[gt[:, 0] == f]
+        err = np.min(np.abs(truth[:, 2] - 1 + truth[:, 4] / 2 - cx))
+        assert err <= 6.0, (f, r["id"], err)
