@@ -102,14 +102,20 @@ class AssociationConfig(Section):
         Whether the members of a merged blob (a region holding two or more confirmed tracks'
         predictions) are placed inside it by their templates and motion
         (:func:`pipeline.stages.blob.place_members`) and measured there, instead of all
-        coasting on their predictions; default False: on the development range it raises the
-        detection-driven tracker's IDF1 (+0.016 and +0.026 on two samples) and purity, but where look-alikes cross
-        (the named crossing3) a member coasting through the crossing is placed on the other
-        one afterwards and the identities swap (IDF1 0.99 -> 0.67).
+        coasting on their predictions; default True. False: every member coasts inside its
+        blob (the paper's system).
     blob_min_correlation : float
         A member is placed only where its template correlates above this (normalised
         correlation coefficient), in [-1, 1]; default 0.5. Lower places more members, also on
         the parts of the blob that only resemble them.
+    blob_reach_fraction : float
+        A member is placed at most this share of its template's width (across) and height
+        (up and down) from its prediction, > 0; default 0.25: the placement refines the
+        motion's position, it does not move a member onto another target.
+    blob_motion_weight : float
+        A place's worth is its correlation above ``blob_min_correlation`` minus this times its
+        squared Mahalanobis distance from the prediction, >= 0; default 0.036 (at the gate's
+        edge, 0.5 of correlation): a far place must match better than a near one.
     """
 
     section = "association"
@@ -132,8 +138,10 @@ class AssociationConfig(Section):
     position_noise: float = param(0.5, gt=0)
     position_std_px: float = param(2.0, gt=0)
     split_touching: bool = False
-    place_in_blobs: bool = False
+    place_in_blobs: bool = True
     blob_min_correlation: float = param(0.5, ge=-1, le=1)
+    blob_reach_fraction: float = param(0.25, gt=0)
+    blob_motion_weight: float = param(0.036, ge=0)
 
     def check(self) -> None:
         if not (self.use_image or self.use_state):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -27,12 +28,15 @@ from pipeline.types import BBox
 @dataclass(frozen=True)
 class Member:
     """One track inside the blob: its template ``patch`` (grey, float32, the size of its box),
-    its predicted centre ``(cx, cy)`` and the 2 x 2 covariance ``S`` of that prediction's
-    innovation, px^2."""
+    its predicted centre ``(cx, cy)``, the 2 x 2 covariance ``S`` of that prediction's
+    innovation, px^2, and how far from the prediction its centre may be placed, as a share of
+    its template's width and height (``reach``, the half-axes of an ellipse; the gate of ``S``
+    alone widens while a track coasts)."""
 
     patch: np.ndarray
     centre: tuple[float, float]
     S: np.ndarray
+    reach: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -54,12 +58,26 @@ def template_patch(frame: np.ndarray, box: BBox) -> np.ndarray | None:
     return np.ascontiguousarray(frame[y0:y1, x0:x1], np.float32)
 
 
-def _response(
-    grey: np.ndarray, blob: BBox, m: Member, gate_chi2: float
-) -> tuple[np.ndarray, np.ndarray, tuple[int, int]] | None:
+class _Response(NamedTuple):
     """A member's correlation over the blob (its box's top-left corner at ``origin`` + index),
-    the mask of the places its box is centred in the blob and inside its motion's gate, and
-    ``origin``; None where the blob cannot hold its template."""
+    the worth of each place (correlation above the floor, less the motion's penalty) and the
+    mask of the places allowed (centred in the blob, inside the motion's gate and reach)."""
+
+    r: np.ndarray
+    worth: np.ndarray
+    ok: np.ndarray
+    origin: tuple[int, int]
+
+
+def _response(
+    grey: np.ndarray,
+    blob: BBox,
+    m: Member,
+    gate_chi2: float,
+    min_correlation: float,
+    motion_weight: float,
+) -> _Response | None:
+    """A member's :class:`_Response`; None where the blob cannot hold its template."""
     h, w = m.patch.shape
     H, W = grey.shape[:2]
     # the search area: every top-left corner that puts the box's centre inside the blob
@@ -76,41 +94,45 @@ def _response(
     inside = (cx >= blob.x) & (cx <= blob.x2) & (cy >= blob.y) & (cy <= blob.y2)
     d = np.stack([cx - m.centre[0], cy - m.centre[1]], -1)
     gamma = np.einsum("...i,ij,...j->...", d, np.linalg.inv(m.S), d)
-    return r, inside & (gamma <= gate_chi2), (x0, y0)
+    near = (d[..., 0] / (m.reach * w)) ** 2 + (d[..., 1] / (m.reach * h)) ** 2 <= 1.0
+    worth = (r - min_correlation - motion_weight * gamma).astype(np.float32)
+    return _Response(r, worth, inside & (gamma <= gate_chi2) & near, (x0, y0))
 
 
 def _candidates(
-    resp: tuple[np.ndarray, np.ndarray, tuple[int, int]] | None, shape: tuple[int, int], peaks: int
-) -> list[Placement]:
-    """A member's local correlation peaks among its allowed places, best first (at most
-    ``peaks``)."""
+    resp: _Response | None, shape: tuple[int, int], peaks: int
+) -> list[tuple[Placement, float]]:
+    """A member's local peaks of worth among its allowed places, with their worth, best first
+    (at most ``peaks``; only places worth more than nothing)."""
     if resp is None:
         return []
-    r, ok, (x0, y0) = resp
+    ok = resp.ok & (resp.worth > 0)
     if not ok.any():
         return []
     h, w = shape
-    r = np.where(ok, r, -1.0).astype(np.float32)
-    local = r >= cv2.dilate(r, np.ones((3, 3), np.uint8))
+    x0, y0 = resp.origin
+    v = np.where(ok, resp.worth, -np.inf).astype(np.float32)
+    local = v >= cv2.dilate(v, np.ones((3, 3), np.uint8))
     iy, ix = np.nonzero(local & ok)
-    order = np.argsort(-r[iy, ix], kind="stable")[:peaks]
+    order = np.argsort(-v[iy, ix], kind="stable")[:peaks]
     return [
-        Placement(
-            BBox(float(ix[k] + x0), float(iy[k] + y0), float(w), float(h)),
-            float(r[iy[k], ix[k]]),
+        (
+            Placement(
+                BBox(float(ix[k] + x0), float(iy[k] + y0), float(w), float(h)),
+                float(resp.r[iy[k], ix[k]]),
+            ),
+            float(v[iy[k], ix[k]]),
         )
         for k in order
     ]
 
 
-def _correlation_at(
-    resp: tuple[np.ndarray, np.ndarray, tuple[int, int]] | None, shape: tuple[int, int], box: BBox
-) -> float:
+def _correlation_at(resp: _Response | None, shape: tuple[int, int], box: BBox) -> float:
     """A member's correlation with its box centred where ``box`` is centred (-1 outside its
     search area)."""
     if resp is None:
         return -1.0
-    r, _, (x0, y0) = resp
+    r, (x0, y0) = resp.r, resp.origin
     h, w = shape
     ix, iy = round(box.cx - w / 2) - x0, round(box.cy - h / 2) - y0
     if 0 <= iy < r.shape[0] and 0 <= ix < r.shape[1]:
@@ -128,6 +150,7 @@ def place_members(
     max_overlap_iou: float = 0.5,
     max_fill: float = 1.25,
     margin: float = 0.1,
+    motion_weight: float = 0.0,
     peaks: int = 4,
 ) -> list[Placement | None]:
     """Every member's place in ``blob``, or None where it is found nowhere well enough.
@@ -151,6 +174,10 @@ def place_members(
         The members placed hold at most this many times the blob's box in area together, > 0;
         default 1.25: a blob the size of one target holds one (a second track there is a
         duplicate, or hidden), two side by side hold two.
+    motion_weight : float
+        A place's worth in the joint choice is its correlation above ``min_correlation`` minus
+        this times its squared Mahalanobis distance from the member's prediction, >= 0;
+        default 0 (correlation alone). A place worth nothing is not taken.
     margin : float
         A member is placed only where its template correlates at least this much better than
         at every other member's place, >= 0; default 0.1: two look-alikes crossing cannot be
@@ -164,24 +191,24 @@ def place_members(
     list of Placement or None
         In the order of ``members``.
     """
-    resp = [None if m is None else _response(grey, blob, m, gate_chi2) for m in members]
-    shapes = [(0, 0) if m is None else m.patch.shape for m in members]
-    cands = [
-        [c for c in _candidates(r, sh, peaks) if c.correlation > min_correlation]
-        for r, sh in zip(resp, shapes, strict=True)
+    resp = [
+        None if m is None else _response(grey, blob, m, gate_chi2, min_correlation, motion_weight)
+        for m in members
     ]
+    shapes = [(0, 0) if m is None else m.patch.shape for m in members]
+    cands = [_candidates(r, sh, peaks) for r, sh in zip(resp, shapes, strict=True)]
     best: tuple[Placement | None, ...] = tuple(None for _ in members)
     best_score = 0.0
     for combo in itertools.product(*[[None, *c] for c in cands]):
-        taken = [c for c in combo if c is not None]
-        score = sum(c.correlation - min_correlation for c in taken)
+        taken = [c[0] for c in combo if c is not None]
+        score = sum(c[1] for c in combo if c is not None)
         if score <= best_score:
             continue
         if len(taken) > 1 and sum(c.box.area for c in taken) > max_fill * blob.area:
             continue
         if any(a.box.iou(b.box) > max_overlap_iou for a, b in itertools.combinations(taken, 2)):
             continue
-        best, best_score = combo, score
+        best, best_score = tuple(None if c is None else c[0] for c in combo), score
     # a member is placed only where its template tells it from the others: its own place
     # matches it better, by ``margin``, than every other member's place (or prediction, where
     # that one is not placed) does, and better than the other members' templates match it

@@ -318,9 +318,17 @@ class DetectAndAssociate:
                 patch = blob.template_patch(tracks[i].template, tracks[i].template_box)
                 S = (Hm @ priors[i].P @ Hm.T + Rm)[:2, :2]
                 c = (float(priors[i].x[0]), float(priors[i].x[1]))
-                members.append(None if patch is None else blob.Member(patch, c, S))
+                if patch is None:
+                    members.append(None)
+                    continue
+                members.append(blob.Member(patch, c, S, a.blob_reach_fraction))
             found = blob.place_members(
-                grey, box, members, gate_chi2=a.gate_chi2, min_correlation=a.blob_min_correlation
+                grey,
+                box,
+                members,
+                gate_chi2=a.gate_chi2,
+                min_correlation=a.blob_min_correlation,
+                motion_weight=a.blob_motion_weight,
             )
             for i, p in zip(idx, found, strict=True):
                 if p is not None and i not in out:

@@ -127,7 +127,7 @@ def test_template_patch_rounds_and_clips(box, shape):
         assert p[0, 0] == frame[max(0, round(box.y)), max(0, round(box.x))]
 
 
-def test_the_detection_tracker_places_members_only_on_request():
-    """Off by default (look-alikes crossing swap, crossing3); the option is there to run."""
+def test_the_detection_tracker_places_members_by_default():
     a = DetectConfig().association
-    assert a.place_in_blobs is False and a.blob_min_correlation == 0.5
+    assert a.place_in_blobs is True and a.blob_min_correlation == 0.5
+    assert a.blob_reach_fraction == 0.25 and a.blob_motion_weight == 0.036
