@@ -131,3 +131,35 @@ def test_the_detection_tracker_places_members_by_default():
     a = DetectConfig().association
     assert a.place_in_blobs is True and a.blob_min_correlation == 0.5
     assert a.blob_reach_fraction == 0.25 and a.blob_motion_weight == 0.036
+
+
+def test_the_motion_picks_the_nearer_of_two_equal_matches():
+    """Two places match the template equally: the one nearer the prediction is worth more
+    (``motion_weight``); without it the choice is the correlation's alone."""
+    a = _texture(10, 30, 14)
+    frame = _scene([(a, 40, 40), (a, 90, 40)])
+    blob = BBox(30, 30, 90, 50)
+    m = Member(a, (90 + 7 - 4.0, 55.0), np.diag([900.0, 900.0]))  # 4 px left of the right one
+    (p,) = place_members(
+        frame, blob, [m], gate_chi2=13.8, min_correlation=0.5, motion_weight=0.036
+    )
+    assert p is not None and (p.box.x, p.box.y) == (90, 40)
+    m = Member(a, (40 + 7 + 4.0, 55.0), np.diag([900.0, 900.0]))  # 4 px right of the left one
+    (p,) = place_members(
+        frame, blob, [m], gate_chi2=13.8, min_correlation=0.5, motion_weight=0.036
+    )
+    assert p is not None and (p.box.x, p.box.y) == (40, 40)
+
+
+def test_a_place_beyond_the_reach_is_not_taken():
+    """``reach`` bounds the distance as a share of the template's width and height, whatever
+    the gate allows."""
+    a = _texture(11, 30, 14)
+    frame = _scene([(a, 50, 40)])
+    blob = BBox(40, 30, 60, 50)
+    loose = np.diag([900.0, 900.0])
+    far = Member(a, (57.0 + 6, 55.0), loose, reach=0.25)  # 6 px across, 3.5 allowed
+    assert place_members(frame, blob, [far], gate_chi2=13.8, min_correlation=0.5) == [None]
+    tall = Member(a, (57.0, 55.0 + 6), loose, reach=0.25)  # 6 px down, 7.5 allowed
+    (p,) = place_members(frame, blob, [tall], gate_chi2=13.8, min_correlation=0.5)
+    assert p is not None and (p.box.x, p.box.y) == (50, 40)
