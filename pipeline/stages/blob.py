@@ -3,11 +3,15 @@ split among them by their appearance and their motion, in one decision over all 
 
 For each member, its template (the grey patch of its last detection on its own) is correlated
 over the blob (:func:`cv2.matchTemplate`, normalised correlation coefficient, the template's
-box centred anywhere in the blob's box); the positions its motion allows (the prediction's χ²
-gate, as the association's) keep their local peaks as candidates. One joint choice then takes,
-for every member, one candidate or none, the highest sum of correlations with no two members'
-boxes overlapping by more than ``max_overlap_iou`` (a member hidden behind another matches
-nowhere well, and takes none: it coasts on its prediction inside the blob).
+box centred anywhere in the blob's box). A place is worth its correlation above a floor less a
+weight times its squared Mahalanobis distance from the member's prediction, and is allowed
+only inside the prediction's chi-squared gate (as the association's) and within a share of the
+template's size of it; the local peaks of worth are the member's candidates. One joint choice
+then takes, for every member, one candidate or none: the highest total worth with no two
+members' boxes overlapping by more than ``max_overlap_iou`` and the boxes together not much
+larger than the blob. Last, a member keeps its place only where its template tells it from the
+others (``margin``). A member hidden behind another matches nowhere well and takes none: it
+coasts on its prediction inside the blob.
 
 Pure functions over arrays; the detection-driven tracker (``pipeline.trackers.detect``) calls
 :func:`place_members` on every blob it keeps as merged.
