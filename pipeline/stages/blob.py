@@ -20,6 +20,7 @@ Pure functions over arrays; the detection-driven tracker (``pipeline.trackers.de
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -144,6 +145,58 @@ def _correlation_at(resp: _Response | None, shape: tuple[int, int], box: BBox) -
     return -1.0
 
 
+MAX_COMBINATIONS = 4096
+"""Above this many combinations of the members' candidates (a crowd in one blob), the joint
+choice gives way to a greedy one: the best candidate first, then the next that fits."""
+
+
+def _fits(taken: list[Placement], blob: BBox, max_overlap_iou: float, max_fill: float) -> bool:
+    """No two boxes overlapping beyond ``max_overlap_iou``, together at most ``max_fill`` times
+    the blob in area."""
+    if len(taken) > 1 and sum(c.box.area for c in taken) > max_fill * blob.area:
+        return False
+    return not any(a.box.iou(b.box) > max_overlap_iou for a, b in itertools.combinations(taken, 2))
+
+
+def _joint(
+    cands: list[list[tuple[Placement, float]]],
+    blob: BBox,
+    max_overlap_iou: float,
+    max_fill: float,
+) -> list[Placement | None]:
+    """Every member's candidate or none, the highest total worth among the choices that fit."""
+    best: list[Placement | None] = [None] * len(cands)
+    best_score = 0.0
+    for combo in itertools.product(*[[None, *c] for c in cands]):
+        score = sum(c[1] for c in combo if c is not None)
+        if score <= best_score:
+            continue
+        if not _fits([c[0] for c in combo if c is not None], blob, max_overlap_iou, max_fill):
+            continue
+        best, best_score = [None if c is None else c[0] for c in combo], score
+    return best
+
+
+def _greedy(
+    cands: list[list[tuple[Placement, float]]],
+    blob: BBox,
+    max_overlap_iou: float,
+    max_fill: float,
+) -> list[Placement | None]:
+    """The candidates taken in order of worth, each where it fits with those already taken, at
+    most one per member."""
+    best: list[Placement | None] = [None] * len(cands)
+    order = sorted(
+        ((w, k, p) for k, c in enumerate(cands) for p, w in c), key=lambda x: (-x[0], x[1])
+    )
+    for _, k, p in order:
+        if best[k] is None and _fits(
+            [q for q in best if q is not None] + [p], blob, max_overlap_iou, max_fill
+        ):
+            best[k] = p
+    return best
+
+
 def place_members(
     grey: np.ndarray,
     blob: BBox,
@@ -188,7 +241,8 @@ def place_members(
         told apart inside their blob, and both coast on their motion instead of swapping.
     peaks : int
         Candidate places kept per member, >= 1; default 4 (the joint choice weighs
-        ``(peaks + 1) ** members`` combinations).
+        ``(peaks + 1) ** members`` combinations; beyond ``MAX_COMBINATIONS`` a greedy choice
+        takes the best candidates first).
 
     Returns
     -------
@@ -201,18 +255,11 @@ def place_members(
     ]
     shapes = [(0, 0) if m is None else m.patch.shape for m in members]
     cands = [_candidates(r, sh, peaks) for r, sh in zip(resp, shapes, strict=True)]
-    best: tuple[Placement | None, ...] = tuple(None for _ in members)
-    best_score = 0.0
-    for combo in itertools.product(*[[None, *c] for c in cands]):
-        taken = [c[0] for c in combo if c is not None]
-        score = sum(c[1] for c in combo if c is not None)
-        if score <= best_score:
-            continue
-        if len(taken) > 1 and sum(c.box.area for c in taken) > max_fill * blob.area:
-            continue
-        if any(a.box.iou(b.box) > max_overlap_iou for a, b in itertools.combinations(taken, 2)):
-            continue
-        best, best_score = tuple(None if c is None else c[0] for c in combo), score
+    n_combos = math.prod(len(c) + 1 for c in cands)
+    if n_combos <= MAX_COMBINATIONS:
+        best = _joint(cands, blob, max_overlap_iou, max_fill)
+    else:
+        best = _greedy(cands, blob, max_overlap_iou, max_fill)
     # a member is placed only where its template tells it from the others: its own place
     # matches it better, by ``margin``, than every other member's place (or prediction, where
     # that one is not placed) does, and better than the other members' templates match it

@@ -163,3 +163,17 @@ def test_a_place_beyond_the_reach_is_not_taken():
     tall = Member(a, (57.0, 55.0 + 6), loose, reach=0.25)  # 6 px down, 7.5 allowed
     (p,) = place_members(frame, blob, [tall], gate_chi2=13.8, min_correlation=0.5)
     assert p is not None and (p.box.x, p.box.y) == (50, 40)
+
+
+def test_a_crowd_in_one_blob_is_placed_greedily_and_each_where_planted():
+    """Twelve members in one blob (5 ** 12 combinations of their candidates): the greedy choice
+    takes over from the joint one and still finds every member where it was planted."""
+    frame = np.full((100, 300), 40.0, np.float32)
+    members, xs = [], [10 + 23 * k for k in range(12)]
+    for k, x in enumerate(xs):
+        tex = _texture(100 + k, 30, 14)
+        frame[30:60, x : x + 14] = tex
+        members.append(Member(tex, (x + 7 + 1.0, 45.0 - 1.0), WIDE, reach=0.5))
+    blob = BBox(10, 30, 23 * 11 + 14, 30)
+    got = place_members(frame, blob, members, gate_chi2=13.8, min_correlation=0.5)
+    assert [(p.box.x, p.box.y) for p in got if p is not None] == [(x, 30) for x in xs]
