@@ -255,15 +255,16 @@ class DetectAndAssociate:
         regions = [r for r in found.regions if r.perimeter_px >= a.min_perimeter_px]
         timing["detection"] = time.perf_counter() - t0
         priors = [kalman.predict(t.kf, F, Q) for t in state.tracks]
-        group = {
-            j
+        inside = {
+            j: [
+                i
+                for i, (t, p) in enumerate(zip(state.tracks, priors, strict=True))
+                if t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
+            ]
             for j, r in enumerate(regions)
-            if sum(
-                t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
-                for t, p in zip(state.tracks, priors, strict=True)
-            )
-            >= 2
         }
+        blobs = {j: ids for j, ids in inside.items() if len(ids) >= 2}
+        group = set(blobs)
         cost, lam_i, gam = self.pair_costs(state.tracks, priors, regions, grey, timing)
         if group:
             cost[:, sorted(group)] = np.inf
@@ -274,7 +275,7 @@ class DetectAndAssociate:
         assignment = ASSOCIATORS[a.associator](finite, miss, new)
         timing["association"] = time.perf_counter() - t2
         t3 = time.perf_counter()
-        placed = self.place(state.tracks, priors, regions, sorted(group), grey)
+        placed = self.place(state.tracks, priors, regions, blobs, grey)
         timing["blobs"] = time.perf_counter() - t3
         return FrameMatch(
             grey,
@@ -295,36 +296,34 @@ class DetectAndAssociate:
         tracks: Sequence[DetTrack],
         priors: Sequence[kalman.GaussianState],
         regions: Sequence[Region],
-        blobs: Sequence[int],
+        blobs: dict[int, list[int]],
         grey: np.ndarray,
     ) -> dict[int, blob.Placement]:
-        """``{track: placement}`` of the confirmed tracks inside the merged blobs ``blobs``
-        (indices into ``regions``), each blob's members placed jointly
-        (:func:`pipeline.stages.blob.place_members`); tracks found nowhere well are left out."""
+        """``{track: placement}`` of the confirmed tracks inside the merged blobs (``blobs``:
+        region index -> the tracks whose predicted centres it holds), each blob's members placed
+        jointly (:func:`pipeline.stages.blob.place_members`); tracks found nowhere well are left
+        out."""
         a = self.cfg.association
         if not a.place_in_blobs or not blobs:
             return {}
-        Hm, Rm = kalman.measurement_model(self.kalman)
         out: dict[int, blob.Placement] = {}
-        for j in blobs:
-            box = regions[j].box
-            idx = [
-                i
-                for i, (t, p) in enumerate(zip(tracks, priors, strict=True))
-                if t.status != TargetStatus.TENTATIVE and _contains(box, p.x[:2])
-            ]
+        for j, idx in sorted(blobs.items()):
             members: list[blob.Member | None] = []
             for i in idx:
                 patch = blob.template_patch(tracks[i].template, tracks[i].template_box)
-                S = (Hm @ priors[i].P @ Hm.T + Rm)[:2, :2]
-                c = (float(priors[i].x[0]), float(priors[i].x[1]))
-                if patch is None:
-                    members.append(None)
-                    continue
-                members.append(blob.Member(patch, c, S, a.blob_reach_fraction))
+                members.append(
+                    None
+                    if patch is None
+                    else blob.Member(
+                        patch,
+                        (float(priors[i].x[0]), float(priors[i].x[1])),
+                        self._position_cov(priors[i]),
+                        a.blob_reach_fraction,
+                    )
+                )
             found = blob.place_members(
                 grey,
-                box,
+                regions[j].box,
                 members,
                 gate_chi2=a.gate_chi2,
                 min_correlation=a.blob_min_correlation,
@@ -334,6 +333,11 @@ class DetectAndAssociate:
                 if p is not None and i not in out:
                     out[i] = p
         return out
+
+    def _position_cov(self, prior: kalman.GaussianState) -> np.ndarray:
+        """The 2 x 2 covariance of a prediction's centre innovation, px^2 (the gate's)."""
+        Hm, Rm = kalman.measurement_model(self.kalman)
+        return (Hm @ prior.P @ Hm.T + Rm)[:2, :2]
 
     def pair_costs(
         self,
@@ -346,7 +350,6 @@ class DetectAndAssociate:
         """(cost N x M, Λ_I N x M (NaN outside the gate), γ N x M) of every track/detection
         pair."""
         a, rm = self.cfg.association, self.cfg.roi_match
-        Hm, Rm = kalman.measurement_model(self.kalman)
         n, m = len(tracks), len(regions)
         cost = np.full((n, m), np.inf)
         lam_i = np.full((n, m), np.nan)
@@ -357,7 +360,7 @@ class DetectAndAssociate:
         z = np.array([r.centroid for r in regions])
         img_s = 0.0
         for i, (t, prior) in enumerate(zip(tracks, priors, strict=True)):
-            S = (Hm @ prior.P @ Hm.T + Rm)[:2, :2]
+            S = self._position_cov(prior)
             ll, g = state_log_likelihoods(z, prior.x[:2], S)  # every detection at once
             gam[i] = g
             for j in np.flatnonzero(g <= a.gate_chi2):
