@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -267,3 +268,28 @@ def test_failure_onsets_find_the_first_sustained_run():
     (o,) = fm._onsets("s", seq, {1: 0.4, 2: 1.0}, run=3)
     assert (o.target, o.frame, o.cls, o.before, o.at) == (1, 5, "drift", "c", "d0")
     assert (o.first_visibility, o.failed) == (0.4, 5)
+
+
+def test_rounding_spread_moves_one_parameter_by_its_last_bits(tmp_path):
+    from pipeline.synthetic import synthesize
+
+    rs = _tool("rounding_spread")
+    assert rs.moved_values(5.0, 2) == [5.0 * (1 + k * 1e-7) for k in (-2, -1, 1, 2)]
+    assert rs._value("dual.levelset.timestep") == 5.0
+    with pytest.raises(SystemExit, match="not a float"):
+        rs._value("dual.levelset.max_iterations_warm")
+    seq = synthesize("fast", tmp_path / "fast", progress=False)
+    out = tmp_path / "spread.json"
+    tool = str(ROOT / "tools" / "rounding_spread.py")
+    text = subprocess.run(
+        [sys.executable, tool, str(seq), "--steps", "1", "--json", str(out)],
+        check=True,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    ).stdout
+    got = json.loads(out.read_text())
+    assert got["param"] == "dual.levelset.timestep" and len(got["moved"]["fast"]) == 2
+    p20, auc = got["base"]["fast"]
+    assert f"| fast | {p20:.3f} | {auc:.3f} |" in text
