@@ -358,14 +358,19 @@ class Dual:
         return [(i, j) for _, i, j in pairs]
 
     def _shared_pairs(self, alone: dict[int, single.Measured]) -> list[tuple[int, int]]:
-        """The pairs of measured targets whose boxes are one object, most overlapping first."""
+        """The pairs of measured targets whose boxes are one object, most overlapping first: the
+        measurements' own boxes, or the boxes they will be reported as (each measurement's
+        centre at its target's size; a contour's or filter's box is often smaller or larger than
+        the box the target reports)."""
         boxes = _measured_boxes(alone)
+        sized = {i: BBox.from_center(b.cx, b.cy, *alone[i].cs.t.size) for i, b in boxes.items()}
         pairs = sorted(
             (
-                (a.iou(boxes[j]), i, j)
+                (max(a.iou(boxes[j]), sized[i].iou(sized[j])), i, j)
                 for i, a in boxes.items()
                 for j in boxes
-                if i < j and self.decider.shared(a, boxes[j])
+                if i < j
+                and (self.decider.shared(a, boxes[j]) or self.decider.shared(sized[i], sized[j]))
             ),
             reverse=True,
         )
