@@ -45,6 +45,12 @@ def test_two_textured_targets_in_one_blob_are_both_found_where_planted():
     assert got[0].correlation > 0.99 and got[1].correlation > 0.99
 
 
+def _both_at_one_prediction(frame, blob, first, second):
+    """Two members predicted at one point (57, 55), placed without the look-alike margin."""
+    members = [Member(first, (57.0, 55.0), WIDE), Member(second, (57.0, 55.0), WIDE)]
+    return place_members(frame, blob, members, gate_chi2=13.8, min_correlation=0.3, margin=0.0)
+
+
 def test_the_joint_choice_does_not_give_one_place_to_both():
     """Two members whose templates both match one target best: the better match takes it and
     the other is placed elsewhere or nowhere, never on the same object."""
@@ -52,14 +58,7 @@ def test_the_joint_choice_does_not_give_one_place_to_both():
     near_a = np.clip(a + _texture(4, 30, 14) * 0.6 - 77, 0, 255)  # a's look-alike, noisier
     frame = _scene([(a, 50, 40), (_texture(5, 30, 14), 66, 40)])
     blob = BBox(50, 40, 30, 30)
-    got = place_members(
-        frame,
-        blob,
-        [Member(a, (57.0, 55.0), WIDE), Member(near_a, (57.0, 55.0), WIDE)],
-        gate_chi2=13.8,
-        min_correlation=0.3,
-        margin=0.0,
-    )
+    got = _both_at_one_prediction(frame, blob, a, near_a)
     assert got[0] is not None and (got[0].box.x, got[0].box.y) == (50, 40)
     assert got[1] is None or got[1].box.iou(got[0].box) <= 0.5
 
@@ -86,14 +85,7 @@ def test_a_blob_the_size_of_one_target_holds_one():
     frame = _scene([(a, 50, 40)])
     blob = BBox(50, 40, 14, 30)
     shifted = np.roll(a, 2, axis=1)  # a duplicate's template, taken 2 px off
-    got = place_members(
-        frame,
-        blob,
-        [Member(a, (57.0, 55.0), WIDE), Member(shifted, (57.0, 55.0), WIDE)],
-        gate_chi2=13.8,
-        min_correlation=0.3,
-        margin=0.0,
-    )
+    got = _both_at_one_prediction(frame, blob, a, shifted)
     assert got[0] is not None and got[1] is None
 
 

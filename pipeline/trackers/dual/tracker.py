@@ -362,6 +362,8 @@ class Dual:
         measurements' own boxes, or the boxes they will be reported as (each measurement's
         centre at its target's size; a contour's or filter's box is often smaller or larger than
         the box the target reports)."""
+        if self.decider.cfg.shared_iou <= 0:
+            return []  # the rule is off (the default): no boxes to build
         boxes = _measured_boxes(alone)
         sized = {i: BBox.from_center(b.cx, b.cy, *alone[i].cs.t.size) for i, b in boxes.items()}
         pairs = sorted(
