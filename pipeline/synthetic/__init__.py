@@ -180,7 +180,7 @@ def _visibility_meta(
 
 
 def synthesize(
-    name: str,
+    name: str | Scene,
     out_dir: str | Path,
     seed: int = 0,
     force: bool = False,
@@ -190,8 +190,10 @@ def synthesize(
 
     Parameters
     ----------
-    name : str
-        One of ``dualtrack synth --list`` (``crossing2``, ``shadows``, ...).
+    name : str or Scene
+        One of ``dualtrack synth --list`` (``crossing2``, ``shadows``, ...), or a
+        :class:`~pipeline.synthetic.scene.Scene` of your own (actors on keyframed paths, see
+        :func:`~pipeline.synthetic.scenarios.keyframes`).
     out_dir : str or Path
         The sequence folder to write (RGBT234 layout: ``visible/``, ``infrared/``, the truth
         files, ``scene.json``; a MOT ``gt.txt`` for several targets).
@@ -220,12 +222,15 @@ def synthesize(
     >>> seq.channels, seq.n_frames
     (('visible', 'infrared'), 32)
     """
-    if name not in SCENARIOS:
+    if isinstance(name, Scene):
+        scene, name = name, name.name
+    elif name in SCENARIOS:
+        scene = SCENARIOS[name]
+    else:
         raise InputError(f"unknown scenario {name!r}; available: random, {', '.join(SCENARIOS)}")
     if not (isinstance(seed, int) and seed >= 0):
         raise InputError(f"--seed must be a non-negative integer; got {seed!r}")
     out = _prepare(out_dir, force)
-    scene = SCENARIOS[name]
     renderer = Renderer(scene, seed)
     ids = sorted({a.target_id for a in scene.actors if a.target_id > 0})
     n = scene.n_frames

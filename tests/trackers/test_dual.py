@@ -110,19 +110,40 @@ def test_a_target_that_turns_while_hidden_is_searched_for_where_it_was_seen(tmp_
     assert seen >= 0.75 and unseen <= 0.6 and default >= 0.7, (seen, unseen, default)
 
 
-def test_a_fast_turning_target_is_measured_within_the_predictions_uncertainty(tmp_path):
-    """Random development seed 9: a person (35 px wide) runs at 8.8 px per frame and turns seven
-    times; after each turn the prediction is uncertain and the measurement lies farther than
-    ``jump_fraction`` of the width from it. On the prediction's line alone (the turn parts off),
-    reaching ``jump_sigma`` deviations of the prediction further keeps the target; the turn
-    parts keep it too."""
-    from pipeline.synthetic import synthesize_random
+def _runner(speed_px: float, height_px: float):
+    """A person running to and fro across a plain street at ``speed_px`` a frame from its first
+    frame, turning at each end: no distractor, no occluder."""
+    from pipeline.synthetic.scenarios import PURPLE, keyframes
+    from pipeline.synthetic.scene import Actor, Scene
 
-    d = synthesize_random(tmp_path / "s", 9, targets=1, progress=False)
+    xs = [60, 260, 120, 250, 80, 200]
+    points, t = [(1.0, 60.0, 130.0, 1.0)], 1.0
+    for a, b in zip(xs, xs[1:]):
+        t += abs(b - a) / speed_px
+        points.append((t, float(b), 130.0, 1.0))
+    runner = Actor(
+        "person", height_px, keyframes(points), target_id=1, palette=PURPLE, facing_auto=True
+    )
+    return Scene("runner", "a runner turning to and fro", 320, 240, int(t), (runner,))
+
+
+def test_a_fast_target_whose_motion_is_not_yet_known_is_measured_within_the_predictions_uncertainty(
+    tmp_path,
+):
+    """A person 12 px wide runs at 12 px a frame from its first frame. The prediction for frame
+    2 (no velocity known yet) is where it started, and the measurement lies farther than
+    ``jump_fraction`` of its width from it: without ``jump_sigma`` (and the turn parts off) it is
+    not taken and the target coasts where it started (P@20 about 0.2); with the prediction's
+    uncertain velocity reached by ``jump_sigma`` deviations it is followed, turns included
+    (about 0.9), and with the turn parts too on every frame. The outcome holds under
+    rounding-level moves of the level set's step (``tools/rounding_spread.py``)."""
+    from pipeline.synthetic import synthesize
+
+    d = synthesize(_runner(12.0, 28.0), tmp_path / "s", seed=0, progress=False)
     sigma = _p20(d, tmp_path / "a", TURN_PARTS_OFF)
     neither = _p20(d, tmp_path / "b", [*TURN_PARTS_OFF, "dual.decider.jump_sigma=0"])
     default = _p20(d, tmp_path / "c", [])
-    assert sigma >= 0.9 and neither <= 0.7 and default >= 0.9, (sigma, neither, default)
+    assert sigma >= 0.8 and neither <= 0.4 and default >= 0.95, (sigma, neither, default)
 
 
 def test_a_target_walking_to_and_fro_is_followed_through_its_turns(tmp_path):
