@@ -315,18 +315,46 @@ def evolve_reference(
 
 
 # --------------------------------------------------------------------------- fast kernel
-LUT_SIZE = 4096
+POLY_DEGREE = 8
+
+FASTMATH = {"nnan", "ninf", "nsz", "arcp", "contract", "reassoc"}
+"""The band kernel's LLVM fast-math flags: ``fastmath=True`` without ``afn`` (which lets LLVM
+approximate square roots); reciprocals may still be approximated (``arcp``)."""
+
+
+def _chebyshev_fit(f: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """float32 coefficients (constant first) of the polynomial of degree :data:`POLY_DEGREE` in
+    ``x = 2 t - 1`` that interpolates ``f(t)`` at Chebyshev nodes of t in [0, 1]. In x the
+    coefficients stay under 1, so that float32 Horner steps do not cancel."""
+    n = 4 * POLY_DEGREE + 4
+    t = 0.5 - 0.5 * np.cos(np.pi * (np.arange(n) + 0.5) / n)
+    c = np.polynomial.chebyshev.chebfit(2 * t - 1, f(t), POLY_DEGREE)
+    return np.polynomial.chebyshev.cheb2poly(c).astype(np.float32)
 
 
 @lru_cache(maxsize=8)
-def _luts(eps: float) -> tuple[np.ndarray, np.ndarray]:
-    """Tables of d_p(s) = sin(2 pi s)/(2 pi s) on s in [0, 1] and delta_eps(p) on p in [-eps, eps]
-    (linear interpolation between 4096 samples: error below 1e-7, under float32 noise)."""
-    s = np.linspace(0.0, 1.0, LUT_SIZE + 1)
-    dps = np.sinc(2.0 * s).astype(np.float32)
-    p = np.linspace(-eps, eps, LUT_SIZE + 1)
-    de = ((1.0 / (2 * eps)) * (1 + np.cos(np.pi * p / eps))).astype(np.float32)
+def _polynomials(eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Polynomials (:func:`_chebyshev_fit`) of d_p(s) = sin(2 pi s)/(2 pi s) in t = s^2 on s in
+    [0, 1], and of delta_eps(p) = (1 + cos(pi p / eps)) / (2 eps) in t = (p / eps)^2 on |p| <=
+    eps (both are even). Evaluated in float32 their error is under 4e-7 (1e-7 per unit of
+    delta_eps's peak 1 / eps), about float32's rounding of phi, and without a table lookup the
+    kernel's loops run in vector registers."""
+    dps = _chebyshev_fit(lambda t: np.sinc(2.0 * np.sqrt(t)))
+    de = _chebyshev_fit(lambda t: (1.0 + np.cos(np.pi * np.sqrt(t))) / (2.0 * eps))
+    dps.flags.writeable = False
+    de.flags.writeable = False
     return dps, de
+
+
+@numba.njit(cache=True, inline="always", nogil=True, error_model="numpy")
+def _poly(t, c):  # pragma: no cover (compiled)
+    """:func:`_polynomials`' polynomial ``c`` at ``t`` in [0, 1] (float32 Horner in ``x = 2 t -
+    1``, unrolled so that a loop over pixels vectorises)."""
+    x = np.float32(2.0) * t - np.float32(1.0)
+    return (
+        ((((((c[8] * x + c[7]) * x + c[6]) * x + c[5]) * x + c[4]) * x + c[3]) * x + c[2]) * x
+        + c[1]
+    ) * x + c[0]
 
 
 @numba.njit(cache=True, boundscheck=False, nogil=True, error_model="numpy")
@@ -369,9 +397,44 @@ def _near_at(pf, k, i, j, H, uW, band):  # pragma: no cover (compiled)
     return np.uint8(v)
 
 
+@numba.njit(
+    cache=True,
+    boundscheck=False,
+    fastmath=FASTMATH,
+    inline="always",
+    nogil=True,
+    error_model="numpy",
+)
+def _derivatives_at(pf, nx, ny, qx, qy, k, i, j, H, uW, dps_c):  # pragma: no cover (compiled)
+    """The unit normal and the distance term's flux at one pixel of the array's outer ring
+    (one-sided differences across the array's edge, central ones along it)."""
+    u0, u1 = np.uint64(0), np.uint64(1)
+    half, one, tiny = np.float32(0.5), np.float32(1.0), np.float32(1e-10)
+    if j == u0:
+        dx = pf[k + u1] - pf[k]
+    elif j == uW - u1:
+        dx = pf[k] - pf[k - u1]
+    else:
+        dx = half * (pf[k + u1] - pf[k - u1])
+    if i == 0:
+        dy = pf[k + uW] - pf[k]
+    elif i == H - 1:
+        dy = pf[k] - pf[k - uW]
+    else:
+        dy = half * (pf[k + uW] - pf[k - uW])
+    s2 = dx * dx + dy * dy
+    s = np.sqrt(s2)
+    inv = one / (s + tiny)
+    nx[k] = dx * inv
+    ny[k] = dy * inv
+    dps = _poly(s2, dps_c) if s < one else one - inv  # s + tiny == s for s >= 1
+    qx[k] = (dps - one) * dx
+    qy[k] = (dps - one) * dy
+
+
 # error_model numpy: no zero test before each division (none divides by zero: 1 / (s + tiny), 1 / s
 # for s >= 1)
-@numba.njit(cache=True, boundscheck=False, fastmath=True, error_model="numpy", nogil=True)
+@numba.njit(cache=True, boundscheck=False, fastmath=FASTMATH, error_model="numpy", nogil=True)
 def _band_iterations(
     phi,
     g,
@@ -384,8 +447,8 @@ def _band_iterations(
     eps,
     dt,
     band,
-    dps_lut,
-    de_lut,
+    dps_c,
+    de_c,
     check_every,
     stop_back,
     stop_tol,
@@ -394,20 +457,23 @@ def _band_iterations(
 ):  # pragma: no cover
     """``n_iter`` DRLSE iterations in place on ``phi`` (float32), updating only a narrow band.
 
-    Same arithmetic as :func:`reference_step`. ``near``: |phi| < band or a sign change to
-    a neighbour; phi is updated on its 1-pixel dilation (so a flat pixel beside the band
-    can join it as the front moves) and the derivatives that update needs are computed on
-    its 2-pixel dilation; flat pixels further away keep their value. The band moves at
-    most one pixel per iteration, so each iteration scans only the previous band's
-    bounding box grown by two pixels, with dense branch-light loops (measured faster here
-    than visiting index lists of band pixels, before the loops below were vectorised).
-    ``near`` is computed over the box without branches in its interior (the outer rows and
-    columns test only the neighbours inside the array).
+    The arithmetic of :func:`reference_step` in float32, with d_p and delta_eps as
+    polynomials (:func:`_polynomials`) and under ``fastmath`` (reciprocals and square roots
+    may be approximated): equal to the reference within float32 rounding, not bit for bit.
+    ``near``: |phi| < band or a sign change to a neighbour; phi is updated on its 1-pixel
+    dilation (so a flat pixel beside the band can join it as the front moves) and the
+    derivatives that update needs are computed on its 2-pixel dilation; flat pixels further
+    away keep their value. The band moves at most one pixel per iteration, so each
+    iteration scans only the previous band's bounding box grown by two pixels. Every pass
+    runs over the box without branches in its interior, so that it runs in vector
+    registers: ``near`` (the outer rows and columns test only the neighbours inside the
+    array), the dilations, the derivatives (on every interior pixel of the box: a value
+    outside the 2-pixel dilation is never read; the array's outer ring, where the
+    dilation reaches it, with one-sided differences) and the update (a select between the
+    new value on the 1-pixel dilation and the old one elsewhere).
 
     Every array is indexed flat with unsigned offsets: numba checks each signed index for
-    a negative value to wrap around, which kept the loops scalar and cost about a third
-    of the kernel's time. Each of these rewrites was checked bit for bit against the
-    kernel before it (phi, iteration counts) on 1970-2370 calls recorded from the tracker.
+    a negative value to wrap around, which would keep the loops scalar.
 
     With ``check_every > 0`` the stopping rule runs inside: every ``check_every``
     iterations the inside area is stored in ``areas`` and the loop ends once it differs
@@ -416,8 +482,10 @@ def _band_iterations(
     refinement; in the same call, so the band carries over). Returns (iterations of the main
     phase, checks stored, whether the refinement ran).
 
-    Work arrays are left uninitialised: every value is written before it is read (``near`` on
-    the whole array in the first iteration, the rest inside the box they are read in).
+    ``near`` and the dilations are left uninitialised: every value is written before it is
+    read (``near`` on the whole array in the first iteration, the rest inside the box they
+    are read in); the derivatives start at zero, because the update's select also reads them
+    (and discards what it computes) beside the dilation.
     """
     H, W = phi.shape
     u0, u1, u2 = np.uint64(0), np.uint64(1), np.uint64(2)
@@ -432,16 +500,16 @@ def _band_iterations(
     t1 = np.empty(H * W, np.uint8)
     a2 = np.empty(H * W, np.uint8)
     a1 = np.empty(H * W, np.uint8)
-    nx = np.empty(H * W, np.float32)
-    ny = np.empty(H * W, np.float32)
-    qx = np.empty(H * W, np.float32)
-    qy = np.empty(H * W, np.float32)
+    nx = np.zeros(H * W, np.float32)
+    ny = np.zeros(H * W, np.float32)
+    qx = np.zeros(H * W, np.float32)
+    qy = np.zeros(H * W, np.float32)
     new = np.empty(H * W, np.float32)
     colany = np.empty(W, np.uint8)
     half = np.float32(0.5)
+    one = np.float32(1.0)
     tiny = np.float32(1e-10)
-    lut_n = dps_lut.shape[0] - 1
-    de_scale = np.float32(lut_n) / (np.float32(2.0) * eps)
+    inv_eps = np.float32(1.0) / eps
     r0, r1, c0, c1 = 0, H - 1, 0, W - 1
     done = 0
     n_checks = 0
@@ -560,64 +628,59 @@ def _band_iterations(
             for j in range(uC0, uC1 + u1):
                 a1[b + j] = t1[b + j] | t1[bm1 + j] | t1[bp1 + j]
                 a2[b + j] = t2[b + j] | t2[bm1 + j] | t2[bp1 + j] | t2[bm2 + j] | t2[bp2 + j]
-        for i in range(R0, R1 + 1):
-            base = np.uint64(i) * uW
-            for j in range(uC0, uC1 + u1):
-                k = base + j
-                if not a2[k]:
-                    continue
-                if j == u0:
-                    dx = pf[k + u1] - pf[k]
-                elif j == uWm1:
-                    dx = pf[k] - pf[k - u1]
-                else:
-                    dx = half * (pf[k + u1] - pf[k - u1])
-                if i == 0:
-                    dy = pf[k + uW] - pf[k]
-                elif i == H - 1:
-                    dy = pf[k] - pf[k - uW]
-                else:
-                    dy = half * (pf[k + uW] - pf[k - uW])
-                s = np.sqrt(dx * dx + dy * dy)
-                inv = np.float32(1.0) / (s + tiny)
-                nx[k] = dx * inv
-                ny[k] = dy * inv
-                if s < 1.0:
-                    u = s * lut_n
-                    kk = int(u)
-                    dps = dps_lut[kk] + (u - kk) * (dps_lut[kk + 1] - dps_lut[kk])
-                else:
-                    dps = np.float32(1.0) - np.float32(1.0) / s
-                qx[k] = (dps - 1) * dx
-                qy[k] = (dps - 1) * dy
+        # the unit normal and the distance term's flux: every pixel of the box's interior
+        # without a branch (vectorised; a value outside a2 is never read), then the array's
+        # outer rows and columns where a2 reaches them, with one-sided differences
         uI0, uI1 = np.uint64(max(C0, 1)), np.uint64(min(C1, W - 2))
         for i in range(max(R0, 1), min(R1, H - 2) + 1):
             base = np.uint64(i) * uW
             for j in range(uI0, uI1 + u1):
                 k = base + j
-                if not a1[k]:
-                    continue
+                dx = half * (pf[k + u1] - pf[k - u1])
+                dy = half * (pf[k + uW] - pf[k - uW])
+                s2 = dx * dx + dy * dy
+                s = np.sqrt(s2)
+                inv = one / (s + tiny)
+                nx[k] = dx * inv
+                ny[k] = dy * inv
+                dps = _poly(s2, dps_c) if s < one else one - inv  # s + tiny == s for s >= 1
+                qx[k] = (dps - one) * dx
+                qy[k] = (dps - one) * dy
+        for i in range(R0, R1 + 1):
+            base = np.uint64(i) * uW
+            if i == 0 or i == H - 1:
+                for j in range(uC0, uC1 + u1):
+                    if a2[base + j]:
+                        _derivatives_at(pf, nx, ny, qx, qy, base + j, i, j, H, uW, dps_c)
+            else:
+                if C0 == 0 and a2[base]:
+                    _derivatives_at(pf, nx, ny, qx, qy, base, i, u0, H, uW, dps_c)
+                if C1 == W - 1 and a2[base + uWm1]:
+                    _derivatives_at(pf, nx, ny, qx, qy, base + uWm1, i, uWm1, H, uW, dps_c)
+        # the update on a1, as a select over the box's interior (vectorised)
+        for i in range(max(R0, 1), min(R1, H - 2) + 1):
+            base = np.uint64(i) * uW
+            for j in range(uI0, uI1 + u1):
+                k = base + j
                 p = pf[k]
                 curv = half * (nx[k + u1] - nx[k - u1]) + half * (ny[k + uW] - ny[k - uW])
                 dist = (
                     half * (qx[k + u1] - qx[k - u1])
                     + half * (qy[k + uW] - qy[k - uW])
-                    + (pf[k + uW] + pf[k - uW] + pf[k + u1] + pf[k - u1] - 4 * p)
+                    + (pf[k + uW] + pf[k - uW] + pf[k + u1] + pf[k - u1] - np.float32(4.0) * p)
                 )
-                if abs(p) <= eps:
-                    u = (p + eps) * de_scale
-                    kk = min(int(u), lut_n - 1)
-                    de = de_lut[kk] + (u - kk) * (de_lut[kk + 1] - de_lut[kk])
-                    edge = de * (gxf[k] * nx[k] + gyf[k] * ny[k] + gf[k] * curv)
-                    new[k] = p + dt * (mu * dist + lam * edge + a * gf[k] * de)
-                else:
-                    new[k] = p + dt * mu * dist
+                r = p * inv_eps
+                de = _poly(r * r, de_c)
+                edge = de * (gxf[k] * nx[k] + gyf[k] * ny[k] + gf[k] * curv)
+                near_zero = p + dt * (mu * dist + lam * edge + a * gf[k] * de)
+                far = p + dt * mu * dist
+                v = near_zero if abs(p) <= eps else far
+                new[k] = v if a1[k] else p
         for i in range(max(R0, 1), min(R1, H - 2) + 1):
             base = np.uint64(i) * uW
             for j in range(uI0, uI1 + u1):
                 k = base + j
-                if a1[k]:
-                    pf[k] = new[k]
+                pf[k] = new[k]
         r0, r1, c0, c1 = R0, R1, C0, C1
     _mirror_border(phi)
     return done, n_checks, refining
@@ -674,7 +737,7 @@ def evolve(
     if min(phi0.shape) < 5:
         raise ValueError(f"the level-set region must be at least 5x5 px; got {phi0.shape}")
     phi = np.ascontiguousarray(phi0, dtype=np.float32).copy()
-    dps_lut, de_lut = _luts(cfg.dirac_width)
+    dps_c, de_c = _polynomials(float(cfg.dirac_width))
     cap = cfg.max_iterations_warm if warm else cfg.max_iterations_cold
     mu, lam = np.float32(cfg.distance_weight), np.float32(cfg.length_weight)
     eps, dt, band = np.float32(cfg.dirac_width), np.float32(cfg.timestep), np.float32(cfg.band_px)
@@ -692,8 +755,8 @@ def evolve(
         eps,
         dt,
         band,
-        dps_lut,
-        de_lut,
+        dps_c,
+        de_c,
         cfg.check_every,
         cfg.stop_window // cfg.check_every,
         cfg.stop_tolerance,

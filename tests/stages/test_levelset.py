@@ -28,7 +28,7 @@ def _kernel(phi, em, cfg, n, alpha=None, stop=(0, 0, 0.0), n_refine=0):
     """``_band_iterations`` on ``phi`` in place with ``cfg``'s weights; ``stop`` = (check_every,
     checks back, tolerance), 0 for none. Returns its (main iterations, checks, refined)."""
     f32 = np.float32
-    dps, de = L._luts(cfg.dirac_width)
+    dps, de = L._polynomials(float(cfg.dirac_width))
     return L._band_iterations(
         phi,
         em.g,
@@ -102,6 +102,25 @@ def test_fast_kernel_equals_reference_step():
     np.testing.assert_allclose(fast[1:-1, 1:-1], ref[1:-1, 1:-1], atol=1e-5)
 
 
+@pytest.mark.parametrize("eps", [0.5, 1.5, 3.0])
+def test_polynomials_give_dp_and_the_dirac_within_float32_rounding(eps):
+    # the kernel's d_p(s) = sinc(2 s) on s < 1 and delta_eps(p) on |p| <= eps, evaluated as it
+    # does (float32 Horner in x = 2 t - 1), against the formulas in float64
+    dps, de = L._polynomials(eps)
+    s = np.linspace(0, 1, 20001, dtype=np.float32)
+    p = np.linspace(-eps, eps, 20001).astype(np.float32)
+    got_dps = np.array([L._poly.py_func(np.float32(v * v), dps) for v in s[::7]], np.float64)
+    r = (p[::7] / np.float32(eps)).astype(np.float32)
+    got_de = np.array([L._poly.py_func(np.float32(v * v), de) for v in r], np.float64)
+    want_dps = np.sinc(2.0 * s[::7].astype(np.float64))
+    want_de = (1 + np.cos(np.pi * p[::7].astype(np.float64) / eps)) / (2 * eps)
+    assert np.abs(got_dps - want_dps).max() < 4e-7
+    assert np.abs(got_de - want_de).max() < 4e-7 / eps
+    assert got_dps[0] == pytest.approx(1.0, abs=4e-7) and got_de[len(r) // 2] == pytest.approx(
+        1 / eps, abs=4e-7
+    )
+
+
 def _narrow_band_oracle(phi, em, cfg, iterations):
     """The narrow-band scheme written densely: every iteration recomputes the band everywhere and
     takes the reference step's values on its 3x3 dilation (the array's outer ring is the Neumann
@@ -139,7 +158,8 @@ def test_band_kernel_follows_a_moving_front_like_the_dense_band_scheme():
         return phi
 
     np.testing.assert_allclose(kernel(8), _narrow_band_oracle(phi0, em, cfg, 8), atol=1e-3)
-    # further on, this noisy image's DRLSE amplifies float32 rounding (LUT vs sinc) in the values,
+    # further on, this noisy image's DRLSE amplifies float32 rounding (the kernel's polynomials and
+    # approximate reciprocals against numpy's sinc and cos) in the values,
     # so compare the regions: ~3500 px changed sides, all but a few dozen alike
     got, want = kernel(80) < 0, _narrow_band_oracle(phi0, em, cfg, 80) < 0
     assert ((phi0 < 0) != want).sum() > 3000
