@@ -119,3 +119,22 @@ def test_target_leaving_the_frame_has_no_truth(tmp_path, monkeypatch):
     assert absent and absent[-1][1] == 12
     assert np.isnan(gt[11]).all() and not np.isnan(gt[0]).any()
     assert gt[5, 0] + gt[5, 2] > 160  # partly outside: the amodal box extends past the border
+
+
+def test_a_scene_of_ones_own_is_rendered_on_its_keyframed_path(tmp_path):
+    """``synthesize`` takes a :class:`Scene` as well as a scenario's name: a person keyframed from
+    (60, 130) to (260, 130) over 41 frames is in its truth at the path's centre (within the
+    sprite's half-pixel rounding) and ``scene.json`` names the scene."""
+    from pipeline.synthetic.scenarios import keyframes
+    from pipeline.synthetic.scene import Actor, Scene
+
+    path = keyframes([(1.0, 60.0, 130.0, 1.0), (41.0, 260.0, 130.0, 1.0)])
+    scene = Scene("planted", "one walker", 320, 240, 41, (Actor("person", 60, path, target_id=1),))
+    d = synthesize(scene, tmp_path / "s", progress=False)
+    truth = np.loadtxt(d / "visible.txt", delimiter=",")
+    assert truth.shape == (41, 4)
+    centre = truth[:, :2] + truth[:, 2:] / 2
+    want = np.array([path(t)[:2] for t in range(1, 42)])
+    err = np.abs(centre - want).max()
+    assert err <= 1.0, err  # 0.67 px: the sprite's rounding to whole rows and columns
+    assert json.loads((d / "scene.json").read_text())["scenario"] == "planted"

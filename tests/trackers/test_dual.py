@@ -4,6 +4,7 @@ observability."""
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 
 import numpy as np
@@ -118,7 +119,7 @@ def _runner(speed_px: float, height_px: float):
 
     xs = [60, 260, 120, 250, 80, 200]
     points, t = [(1.0, 60.0, 130.0, 1.0)], 1.0
-    for a, b in zip(xs, xs[1:]):
+    for a, b in itertools.pairwise(xs):
         t += abs(b - a) / speed_px
         points.append((t, float(b), 130.0, 1.0))
     runner = Actor(
@@ -127,9 +128,7 @@ def _runner(speed_px: float, height_px: float):
     return Scene("runner", "a runner turning to and fro", 320, 240, int(t), (runner,))
 
 
-def test_a_fast_target_whose_motion_is_not_yet_known_is_measured_within_the_predictions_uncertainty(
-    tmp_path,
-):
+def test_a_fast_target_of_unknown_motion_is_measured_within_the_predictions_uncertainty(tmp_path):
     """A person 12 px wide runs at 12 px a frame from its first frame. The prediction for frame
     2 (no velocity known yet) is where it started, and the measurement lies farther than
     ``jump_fraction`` of its width from it: without ``jump_sigma`` (and the turn parts off) it is
