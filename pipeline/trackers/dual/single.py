@@ -396,7 +396,9 @@ def _learn_filter(
         return dual.appearance.train(frames, mode, out), app_size
     at = BBox.from_center(out.cx, out.cy, *app_size)
     seen = m.cs.informative
-    return dual.appearance.learn(model, frames, mode, at, d, colour, seen, frames.index), app_size
+    reuse = m.cue.scale_samples if m.cue is not None else None
+    learned = dual.appearance.learn(model, frames, mode, at, d, colour, seen, frames.index, reuse)
+    return learned, app_size
 
 
 def _frozen(t: DualTarget, colour: UpdateDecision) -> list[Event]:
