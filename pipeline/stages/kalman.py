@@ -20,13 +20,19 @@ argument handling and the innovation is not computed twice (tests compare the tw
 ``cv2.KalmanFilter`` was the other candidate; it is a mutable object (our states are
 frozen values), hides the innovation covariance S (only in its undocumented ``temp3``)
 and needs float32 matrices of exact shape. State vectors are 1-D in this API.
+
+:func:`predict_compiled` and :func:`correct_compiled` are the same algebra as one compiled call
+each (a few microseconds against tens for numpy's small matrix calls); they sum in another order
+than BLAS, so they agree with :func:`predict` / :func:`correct` to rounding (tested to 1e-9
+relative), not bit for bit.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 
+import numba
 import numpy as np
 
 from pipeline.params import Section, param
@@ -256,3 +262,110 @@ def log_likelihood(y: np.ndarray, S: np.ndarray) -> float:
     """Gaussian log-density of the innovation: ``-(y^T S^-1 y + ln|2 pi S|) / 2``."""
     _sign, logdet = np.linalg.slogdet(2 * np.pi * S)
     return float(-0.5 * (y @ np.linalg.solve(S, y) + logdet))
+
+
+def predict_compiled(
+    state: GaussianState, F: np.ndarray, Q: np.ndarray, fading: float = 1.0
+) -> GaussianState:
+    """:func:`predict` in one compiled call (equal to it within rounding)."""
+    alpha = np.sqrt(fading)
+    x, P = _predict_kernel(
+        np.ascontiguousarray(state.x, np.float64),
+        np.ascontiguousarray(state.P, np.float64),
+        F,
+        Q,
+        float(alpha * alpha),
+    )
+    return GaussianState(x, P)
+
+
+def correct_compiled(
+    prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, cfg: KalmanConfig
+) -> KalmanUpdate:
+    """:func:`correct` with :func:`update`'s algebra in one compiled call (equal to it within
+    rounding)."""
+    z = np.asarray(z, np.float64)
+    if cfg.maneuver_adaptive:
+        a = maneuver_factor(prior, z, H, R, cfg.maneuver_sigma)
+        if a > 1.0:
+            prior = GaussianState(prior.x, prior.P * min(a, cfg.maneuver_cap))
+    x, P, y, S = _update_kernel(
+        np.ascontiguousarray(prior.x, np.float64),
+        np.ascontiguousarray(prior.P, np.float64),
+        z,
+        H,
+        np.ascontiguousarray(R, np.float64),
+    )
+    return KalmanUpdate(GaussianState(x, P), y, S)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mul(A, B):  # pragma: no cover (compiled)
+    """A @ B of two small float64 matrices, plain loops."""
+    n, m = A.shape
+    p = B.shape[1]
+    out = np.zeros((n, p))
+    for i in range(n):
+        for k in range(m):
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(p):
+                    out[i, j] += a * B[k, j]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _predict_kernel(x, P, F, Q, a2):  # pragma: no cover (compiled)
+    """``(F x, a2 F P F^T + Q)``."""
+    n = x.size
+    xo = np.zeros(n)
+    for i in range(n):
+        s = 0.0
+        for k in range(n):
+            s += F[i, k] * x[k]
+        xo[i] = s
+    Po = _mul(_mul(F, P), F.T.copy())
+    for i in range(n):
+        for j in range(n):
+            Po[i, j] = a2 * Po[i, j] + Q[i, j]
+    return xo, Po
+
+
+@numba.njit(cache=True, nogil=True)
+def _update_kernel(x, P, z, H, R):  # pragma: no cover (compiled)
+    """Posterior (Joseph form), innovation and its covariance, as :func:`update`."""
+    n, m = x.size, z.size
+    y = np.empty(m)
+    for i in range(m):
+        s = 0.0
+        for k in range(n):
+            s += H[i, k] * x[k]
+        y[i] = z[i] - s
+    Ht = H.T.copy()
+    PHt = _mul(P, Ht)
+    S = _mul(H, PHt)
+    for i in range(m):
+        for j in range(m):
+            S[i, j] += R[i, j]
+    K = _mul(PHt, np.linalg.inv(S))
+    xo = x.copy()
+    for i in range(n):
+        s = 0.0
+        for k in range(m):
+            s += K[i, k] * y[k]
+        xo[i] += s
+    I_KH = -_mul(K, H)
+    for i in range(n):
+        I_KH[i, i] += 1.0
+    Po = _mul(_mul(I_KH, P), I_KH.T.copy()) + _mul(_mul(K, R), K.T.copy())
+    return xo, Po, y, S
+
+
+@cache
+def warm_up() -> None:
+    """Compile or load the compiled filter's kernels once per process."""
+    cfg = KalmanConfig()
+    F, Q = motion_model(cfg)
+    H, R = measurement_model(cfg)
+    prior = predict_compiled(init_state(BBox(0.0, 0.0, 10.0, 10.0), cfg), F, Q)
+    correct_compiled(prior, np.zeros(4), H, R, cfg)

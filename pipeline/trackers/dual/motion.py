@@ -36,7 +36,7 @@ class Motion:
         """The prior of this frame: a missing target coasts at constant velocity and size."""
         F, Q = kalman.motion_model(self.kalman)
         missing = t.missing > 0 or t.held
-        return kalman.predict(hold_rates(t.kf, self.kalman) if missing else t.kf, F, Q)
+        return kalman.predict_compiled(hold_rates(t.kf, self.kalman) if missing else t.kf, F, Q)
 
     def search_start(self, t: DualTarget, prior: kalman.GaussianState) -> tuple[float, float]:
         """Where this frame's searches start: the prediction, or (the paper's) the last
@@ -50,7 +50,7 @@ class Motion:
     ) -> kalman.GaussianState:
         """``prior`` corrected by a measured ``box`` whose noise is ``noise`` times the model's."""
         Hm, Rm = kalman.measurement_model(self.kalman)
-        return kalman.correct(
+        return kalman.correct_compiled(
             prior, kalman.box_measurement(box), Hm, Rm * noise, self.kalman
         ).state
 

@@ -14,6 +14,7 @@ from pipeline.stages import appearance as app_stage
 from pipeline.stages import contour as contour_stage
 from pipeline.stages import detection as detection_stage
 from pipeline.stages import extent as extent_stage
+from pipeline.stages import kalman as kalman_stage
 from pipeline.stages import meanshift as meanshift_stage
 from pipeline.stages import model_update as model_update_stage
 from pipeline.stages.contour import ContourResult
@@ -154,6 +155,7 @@ class Dual:
         contour_stage.warm_up()
         extent_stage.warm_up()
         model_update_stage.warm_up()
+        kalman_stage.warm_up()
         if self.appearance is not None:
             app_stage.warm_up()
 
