@@ -267,14 +267,12 @@ def log_likelihood(y: np.ndarray, S: np.ndarray) -> float:
 def predict_compiled(
     state: GaussianState, F: np.ndarray, Q: np.ndarray, fading: float = 1.0
 ) -> GaussianState:
-    """:func:`predict` in one compiled call (equal to it within rounding)."""
+    """:func:`predict` in one compiled call (equal to it within rounding). ``F`` and ``Q`` as
+    :func:`motion_model` gives them (read-only float64: the signature the kernel is compiled
+    for once; the state is copied)."""
     alpha = np.sqrt(fading)
     x, P = _predict_kernel(
-        np.ascontiguousarray(state.x, np.float64),
-        np.ascontiguousarray(state.P, np.float64),
-        F,
-        Q,
-        float(alpha * alpha),
+        np.array(state.x, np.float64), np.array(state.P, np.float64), F, Q, float(alpha * alpha)
     )
     return GaussianState(x, P)
 
@@ -283,18 +281,19 @@ def correct_compiled(
     prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, cfg: KalmanConfig
 ) -> KalmanUpdate:
     """:func:`correct` with :func:`update`'s algebra in one compiled call (equal to it within
-    rounding)."""
+    rounding). ``H`` as :func:`measurement_model` gives it (read-only float64); the rest is
+    copied, so that the kernel is compiled for one signature."""
     z = np.asarray(z, np.float64)
     if cfg.maneuver_adaptive:
         a = maneuver_factor(prior, z, H, R, cfg.maneuver_sigma)
         if a > 1.0:
             prior = GaussianState(prior.x, prior.P * min(a, cfg.maneuver_cap))
     x, P, y, S = _update_kernel(
-        np.ascontiguousarray(prior.x, np.float64),
-        np.ascontiguousarray(prior.P, np.float64),
-        z,
+        np.array(prior.x, np.float64),
+        np.array(prior.P, np.float64),
+        np.array(z, np.float64),
         H,
-        np.ascontiguousarray(R, np.float64),
+        np.array(R, np.float64),
     )
     return KalmanUpdate(GaussianState(x, P), y, S)
 
