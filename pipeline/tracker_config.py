@@ -135,7 +135,11 @@ class RedetectConfig(Section):
         The detector of the whole-frame search (run on the IR frame, the visible one without
         IR; its visible-channel regions are never asked for). Its regions are not grown
         (``grow_k`` 0 here): the search takes their centres, and grown ones moved the
-        development range both ways (P@20 -0.002 on one target, +0.004 on many).
+        development range both ways (P@20 -0.002 on one target, +0.004 on many). Its
+        sequence background is taken over 13 frames (``background_samples``, 25 for the
+        ``detect`` tracker): it costs half (36 -> 16 ms a 400-frame block at 320 x 240) and
+        the development range did not move beyond its noise (P@20 +0.0004 on one target,
+        IDF1 -0.002 on many).
     """
 
     section = "redetect"
@@ -145,7 +149,9 @@ class RedetectConfig(Section):
     global_after_frames: int = param(12, ge=1)
     every_frames: int = param(2, ge=1)
     candidates: int = param(12, ge=1)
-    detection: DetectionConfig = field(default_factory=lambda: DetectionConfig(grow_k=0.0))
+    detection: DetectionConfig = field(
+        default_factory=lambda: DetectionConfig(grow_k=0.0, background_samples=13)
+    )
 
 
 @dataclass(frozen=True)
