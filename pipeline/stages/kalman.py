@@ -251,11 +251,19 @@ def correct(
 ) -> KalmanUpdate:
     """:func:`update`, after inflating the predicted covariance by ``a_max`` (capped) when
     ``cfg.maneuver_adaptive`` and the innovation says the target manoeuvres (a_max > 1)."""
+    return update(_maneuvered(prior, z, H, R, cfg), z, H, R)
+
+
+def _maneuvered(
+    prior: GaussianState, z: np.ndarray, H: np.ndarray, R: np.ndarray, cfg: KalmanConfig
+) -> GaussianState:
+    """``prior`` with its covariance inflated by ``a_max`` (capped) when ``cfg.maneuver_adaptive``
+    and the innovation of ``z`` says the target manoeuvres (a_max > 1); else ``prior``."""
     if cfg.maneuver_adaptive:
         a = maneuver_factor(prior, z, H, R, cfg.maneuver_sigma)
         if a > 1.0:
-            prior = GaussianState(prior.x, prior.P * min(a, cfg.maneuver_cap))
-    return update(prior, z, H, R)
+            return GaussianState(prior.x, prior.P * min(a, cfg.maneuver_cap))
+    return prior
 
 
 def log_likelihood(y: np.ndarray, S: np.ndarray) -> float:
@@ -283,17 +291,10 @@ def correct_compiled(
     """:func:`correct` with :func:`update`'s algebra in one compiled call (equal to it within
     rounding). ``H`` as :func:`measurement_model` gives it (read-only float64); the rest is
     copied, so that the kernel is compiled for one signature."""
-    z = np.asarray(z, np.float64)
-    if cfg.maneuver_adaptive:
-        a = maneuver_factor(prior, z, H, R, cfg.maneuver_sigma)
-        if a > 1.0:
-            prior = GaussianState(prior.x, prior.P * min(a, cfg.maneuver_cap))
+    z = np.array(z, np.float64)
+    prior = _maneuvered(prior, z, H, R, cfg)
     x, P, y, S = _update_kernel(
-        np.array(prior.x, np.float64),
-        np.array(prior.P, np.float64),
-        np.array(z, np.float64),
-        H,
-        np.array(R, np.float64),
+        np.array(prior.x, np.float64), np.array(prior.P, np.float64), z, H, np.array(R, np.float64)
     )
     return KalmanUpdate(GaussianState(x, P), y, S)
 

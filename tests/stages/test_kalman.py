@@ -134,12 +134,14 @@ def test_bad_config(kw):
         kalman.KalmanConfig(**kw)
 
 
-def test_the_compiled_filter_is_the_numpy_one():
+@pytest.mark.parametrize("adaptive", [False, True])
+def test_the_compiled_filter_is_the_numpy_one(adaptive):
     """``predict_compiled`` / ``correct_compiled`` over 200 frames of a target that accelerates,
-    measured with noise at several measurement noises: the same states, innovations and S as
-    ``predict`` / ``correct`` to 1e-9 relative (on this machine bit for bit)."""
+    measured with noise at several measurement noises, with and without the manoeuvre
+    inflation: the same states, innovations and S as ``predict`` / ``correct`` to 1e-9 relative
+    (on this machine bit for bit)."""
 
-    cfg = kalman.KalmanConfig()
+    cfg = kalman.KalmanConfig(maneuver_adaptive=adaptive)
     F, Q = kalman.motion_model(cfg)
     H, R = kalman.measurement_model(cfg)
     rng = np.random.default_rng(3)
