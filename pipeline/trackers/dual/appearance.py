@@ -33,6 +33,7 @@ class FilterCue:
     redetected: bool  # found by the widened or whole-frame search, not at the prediction
     support: tuple[float, float] = (float("nan"), float("nan"))  # (visible, IR) PSR at the peak
     scale_samples: app.ScaleSamples | None = None  # the scale filter's, for its learning
+    window_samples: app.WindowSamples | None = None  # the translation filter's, likewise
 
 
 @dataclass(frozen=True)
@@ -80,7 +81,15 @@ class AppearanceCue:
         cx = min(max(d.center[0], 0.0), float(W))
         cy = min(max(d.center[1], 0.0), float(H))
         box = BBox.from_center(cx, cy, d.size[0], d.size[1])
-        return FilterCue(box, d.psr, d.scale_factor, redetected, d.support, d.scale_samples)
+        return FilterCue(
+            box,
+            d.psr,
+            d.scale_factor,
+            redetected,
+            d.support,
+            d.scale_samples,
+            d.window_samples,
+        )
 
     def learn(
         self,
@@ -93,11 +102,13 @@ class AppearanceCue:
         informative: bool,
         frame: int,
         reuse: app.ScaleSamples | None = None,
+        reuse_window: app.WindowSamples | None = None,
     ) -> app.AppearanceModel | None:
         """The filter blended with this frame when the decision lets the models learn and the
         colour's selective update did not freeze for a change of appearance (eq. 8-9 gates the
         filter's learning rate); on every ``update_every_frames``-th frame only, at the rate
-        compounded over them. ``reuse``: this frame's scale samples (``scale_reuse_px``)."""
+        compounded over them. ``reuse``, ``reuse_window``: this frame's scale samples and search
+        window (``scale_reuse_px``, ``window_reuse_px``)."""
         acfg = self.cfg
         if (
             model is None
@@ -123,4 +134,5 @@ class AppearanceCue:
             rate=1 - (1 - acfg.learning_rate) ** k,
             scale_rate=scale_rate,
             reuse=reuse,
+            reuse_window=reuse_window,
         )

@@ -397,7 +397,10 @@ def _learn_filter(
     at = BBox.from_center(out.cx, out.cy, *app_size)
     seen = m.cs.informative
     reuse = m.cue.scale_samples if m.cue is not None else None
-    learned = dual.appearance.learn(model, frames, mode, at, d, colour, seen, frames.index, reuse)
+    window = m.cue.window_samples if m.cue is not None else None
+    learned = dual.appearance.learn(
+        model, frames, mode, at, d, colour, seen, frames.index, reuse, window
+    )
     return learned, app_size
 
 
