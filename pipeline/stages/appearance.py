@@ -133,10 +133,10 @@ class AppearanceConfig(Section):
         the Fourier domain so that the learned box's centre lands on the window's centre (ECO's
         sample shift), when that centre lies within this many px of the detection window's and
         the window's size differs by at most this many px at its edge, >= 0; default 1; 0 takes
-        the window again at the learned box. It saves the second window of features a frame on
-        most frames (about 8 % of the tracker's time); the sample it learns has its cosine
-        window off the target's centre by up to that distance and is resampled at up to that
-        error at the window's edge.
+        the window again at the learned box. It saves the second window of features on about
+        two learning frames in three (about 5 % of the tracker's time); the sample it learns has
+        its cosine window off the target's centre by up to that distance, and the detection's
+        cell grid and size (up to that distance off at the window's edge).
     """
 
     section = "appearance"
