@@ -8,7 +8,9 @@ files the rate at which OpenCV alone (``cv2.imread``, one thread) decodes them
 tracker then runs the full ``track`` pipeline (decode + track + CSV + .rrd) into a run
 folder; its ``fps_tracking`` (frames / seconds inside the tracker), ``fps_tracking_cpu``
 (frames / CPU seconds of the tracker's thread inside it) and ``fps_end_to_end`` come from
-that run, P@20 and AUC from its evaluation. The reader and writer threads run beside the
+that run, P@20 and AUC from its evaluation. The decode-only rates are of the whole frames;
+a run that reads them smaller (its ``decode_scale``, ``--decode-scale auto`` on large JPEG
+footage) decodes faster than that. The reader and writer threads run beside the
 tracker on the run's other core; what they take from it (the GIL held by the writer's
 Python, the machine's other threads) lowers ``fps_tracking`` more for a fast tracker than
 for a slow one, and not ``fps_tracking_cpu``, which counts only the tracker's own work
@@ -183,6 +185,7 @@ def run_bench(
                         "fps_end_to_end": max(fps_e2e) if fps_e2e else None,
                         "fps_tracking_runs": fps_trk,
                         "stage_seconds": (fastest or s).get("stage_seconds"),
+                        "decode_scale": s.get("decode_scale"),
                         "complete": s.get("complete"),
                     }
                 )

@@ -138,6 +138,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_protocol(p, "the evaluation in summary.json")
     p.add_argument("--force", action="store_true", help="overwrite a non-empty run folder")
     p.add_argument("--frames", type=int, default=None, metavar="N", help="stop after N frames")
+    p.add_argument(
+        "--decode-scale",
+        choices=("auto", "1", "2", "4", "8"),
+        default="auto",
+        help=(
+            "track on frames read at 1/N of their size, boxes written at full size (JPEG "
+            "decoded there by libjpeg); 'auto' (default): large JPEG frames with large targets"
+        ),
+    )
     _add_open_options(p)
 
     p = sub.add_parser("evaluate", help="score a results file against a sequence's ground truth")
@@ -383,6 +392,7 @@ def _cmd_track(a: argparse.Namespace) -> int:
             protocol=a.protocol,
             force=a.force,
             stop_frame=a.frames,
+            decode_scale=None if a.decode_scale == "auto" else int(a.decode_scale),
         ),
     )
     s = res.summary
@@ -391,6 +401,8 @@ def _cmd_track(a: argparse.Namespace) -> int:
         f"{res.out_dir}: {s['frames']}/{s['frames_total']} frames, {s['tracker']}, "
         f"fps_tracking {s['fps_tracking']}"
     )
+    if int(s.get("decode_scale") or 1) > 1:
+        line += f", read at 1/{s['decode_scale']} size"
     m = s.get("metrics")
     if isinstance(m, dict):
         parts = [

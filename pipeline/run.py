@@ -20,11 +20,12 @@ from pipeline._version import __version__
 from pipeline.config import PipelineConfig, config_to_dict, load_config
 from pipeline.errors import InputError
 from pipeline.io.background import camera_warning
+from pipeline.io.frames import ImageListSource
 from pipeline.io.init import resolve_init
 from pipeline.io.sequence import FramePair, Sequence, open_sequence
 from pipeline.trackers import DEFAULT_TRACKER, Engine, make_tracker
 from pipeline.trackers.base import attach_sequence
-from pipeline.types import BBox, FrameResult, FrameTruth, InitTarget
+from pipeline.types import BBox, FrameResult, FrameTruth, InitTarget, zoomed
 
 RUN_FILES = ("tracks.csv", "targets.csv", "run.rrd", "summary.json", "plots")
 
@@ -43,7 +44,9 @@ class TrackStep:
 def iter_track(
     seq: Sequence, engine: Engine, targets: list[InitTarget], stop: int | None = None
 ) -> Iterator[TrackStep]:
-    """Drive ``engine`` over ``seq``: ``start`` on frame 1, ``step`` on the others."""
+    """Drive ``engine`` over ``seq``: ``start`` on frame 1, ``step`` on the others; on a sequence
+    read smaller (:meth:`Sequence.decode_at`) the targets and results stay in the source's px."""
+    started = _at_scale(targets, seq.scale)
     it = seq.frames(1, stop)
     while True:
         t0 = time.perf_counter()
@@ -52,9 +55,20 @@ def iter_track(
         except StopIteration:
             return
         t1 = time.perf_counter()
-        result = engine.start(frames, targets) if frames.index == 1 else engine.step(frames)
+        result = engine.start(frames, started) if frames.index == 1 else engine.step(frames)
         t2 = time.perf_counter()
+        result = zoomed(result, seq.scale)
         yield TrackStep(frames, result, t2 - t1, t1 - t0)
+
+
+def _at_scale(targets: list[InitTarget], scale: int) -> list[InitTarget]:
+    """``targets`` (source px) in the px of frames read at ``1 / scale``."""
+    if scale == 1:
+        return targets
+    return [
+        InitTarget(t.id, BBox(t.box.x / scale, t.box.y / scale, t.box.w / scale, t.box.h / scale))
+        for t in targets
+    ]
 
 
 def track(
@@ -145,6 +159,11 @@ class RunOptions:
     threads : bool
         Decode and write on threads beside the tracker (default); False does all three in
         turn on one thread, with the same results.
+    decode_scale : int, optional
+        Track on frames read at ``1 / decode_scale`` of their size (1, 2, 4 or 8; JPEG files
+        decoded there by libjpeg's DCT scaling), the boxes written at full size; None (default,
+        ``--decode-scale auto``): :func:`auto_decode_scale`. Only for trackers started from
+        given boxes.
 
     Examples
     --------
@@ -171,6 +190,7 @@ class RunOptions:
     stop_frame: int | None = None
     config: PipelineConfig | None = None
     threads: bool = True
+    decode_scale: int | None = None
 
 
 @dataclass
@@ -207,6 +227,37 @@ def _write_csv(sink, frames: FramePair, item: TrackItem) -> None:
 
 def _write_rrd(sink, frames: FramePair, item: TrackItem) -> None:
     sink.write(frames, item.result, item.truth)
+
+
+AUTO_MIN_TARGET_PX = 32
+"""``--decode-scale auto`` reads frames smaller only while every initial target's shorter side
+stays at least this many px there (the filter's template and the level set's region still hold
+the target's shape)."""
+
+AUTO_MIN_FRAME_PX = 360
+"""... and the frame's shorter side at least this many px."""
+
+
+def auto_decode_scale(seq: Sequence, targets: list[InitTarget]) -> int:
+    """The decode scale of ``--decode-scale auto``: the largest of 8, 4 and 2 at which every
+    initial target's shorter side is still :data:`AUTO_MIN_TARGET_PX` px and the frame's
+    :data:`AUTO_MIN_FRAME_PX`, for sequences of JPEG files (where libjpeg decodes at that size
+    for less); 1 otherwise (no targets, other formats, small frames or targets).
+
+    A 1920 x 1080 JPEG sequence with a 67 x 80 px target is read at half its size; a 320 x 240
+    one, or a 1080p one with a 40 px target, whole."""
+    if not targets or not all(
+        isinstance(s, ImageListSource)
+        and all(p.suffix.lower() in (".jpg", ".jpeg") for p in s.paths)
+        for s in seq.sources.values()
+    ):
+        return 1
+    side = min(min(t.box.w, t.box.h) for t in targets)
+    frame = min(seq.width, seq.height)
+    for f in (8, 4, 2):
+        if side / f >= AUTO_MIN_TARGET_PX and frame / f >= AUTO_MIN_FRAME_PX:
+            return f
+    return 1
 
 
 def run_track(
@@ -272,7 +323,6 @@ def run_track(
     seq = open_sequence(seq_path, channel=opts.channel, align=opts.align, gt_base=opts.gt_base)
     cfg = opts.config if opts.config is not None else load_config(opts.config_path, opts.sets)
     engine = make_tracker(opts.tracker, cfg)
-    attach_sequence(engine, seq)
     from pipeline.trackers import NEEDS_NO_INIT, detect_init
 
     detected_ids = opts.tracker in NEEDS_NO_INIT or (
@@ -284,6 +334,16 @@ def run_track(
         targets = detect_init(seq, cfg.detect)
     else:
         targets = resolve_init(seq, opts.init, opts.init_file, opts.channel)
+    if detected_ids and opts.decode_scale not in (None, 1):
+        raise InputError(
+            "--decode-scale applies to trackers started from given boxes, not to detected ones"
+        )
+    scale = 1 if detected_ids else (opts.decode_scale or auto_decode_scale(seq, targets))
+    if scale not in (1, 2, 4, 8):
+        raise InputError(f"--decode-scale must be auto, 1, 2, 4 or 8; got {scale}")
+    seq.decode_at(scale)
+    attach_sequence(engine, seq)  # after decode_at: the engine's background reads frames too
+    started = _at_scale(targets, scale)
     out = Path(opts.out_dir) if opts.out_dir is not None else Path("runs") / seq.name
     summary: dict[str, object] = {
         "tracker": opts.tracker,
@@ -295,6 +355,7 @@ def run_track(
         "frames_total": seq.n_frames,
         "targets": [{"id": t.id, "box": list(t.box.as_tuple())} for t in targets],
         "ids": "detected" if detected_ids else "given",
+        "decode_scale": scale,
         "config": config_to_dict(cfg, opts.tracker),
         "version": __version__,
         "seed": seq.meta.get("seed") if isinstance(seq.meta.get("seed"), int) else None,
@@ -314,7 +375,8 @@ def run_track(
     has_truth = seq.truth.has_truth
 
     def step(frames: FramePair) -> TrackItem:
-        result = engine.start(frames, targets) if frames.index == 1 else engine.step(frames)
+        result = engine.start(frames, started) if frames.index == 1 else engine.step(frames)
+        result = zoomed(result, scale)  # frame px of the source frames
         for t in result.targets:
             if t.id not in boxes:
                 boxes[t.id] = np.full((seq.n_frames, 4), np.nan)
@@ -330,6 +392,7 @@ def run_track(
             start = (
                 f"{opts.tracker} on {seq.name} ({seq.layout}, {'+'.join(seq.channels)}): "
                 + ", ".join(f"T{t.id} {t.box}" for t in targets)
+                + (f"; tracked on frames read at 1/{scale} of their size" if scale > 1 else "")
             )
             try:
                 rrd = RerunSink(

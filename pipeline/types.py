@@ -367,3 +367,40 @@ class FrameResult:
             if t.id == target_id:
                 return t
         return None
+
+
+def _times(b: BBox, f: float) -> BBox:
+    return BBox(b.x * f, b.y * f, b.w * f, b.h * f)
+
+
+def zoomed(result: FrameResult, factor: float) -> FrameResult:
+    """``result`` with every frame-px quantity of its targets times ``factor``: boxes, contours,
+    overlays, and the diagnostics whose names end in ``_px`` (times ``factor``) or ``_px2``
+    (times its square); the rest (rates, ratios, counts, the diagnostic images) as they are.
+    For a tracker run on frames ``factor`` times smaller than the source's.
+
+    Examples
+    --------
+    >>> t = TargetResult(1, BBox(10.0, 20.0, 4.0, 6.0), TargetStatus.TRACKING, "x",
+    ...                  diagnostics={"area_px2": 24.0, "psr": 9.0})
+    >>> z = zoomed(FrameResult(1, (t,)), 2).targets[0]
+    >>> z.box.as_tuple(), z.diagnostics["area_px2"], z.diagnostics["psr"]
+    ((20.0, 40.0, 8.0, 12.0), 96.0, 9.0)
+    """
+    if factor == 1:
+        return result
+
+    def unit(name: str) -> float:
+        return factor * factor if name.endswith("_px2") else factor if name.endswith("_px") else 1
+
+    targets = tuple(
+        dataclasses.replace(
+            t,
+            box=_times(t.box, factor),
+            contour=tuple(np.asarray(c, np.float64) * factor for c in t.contour),
+            overlays={k: _times(b, factor) for k, b in t.overlays.items()},
+            diagnostics={k: v * unit(k) for k, v in t.diagnostics.items()},
+        )
+        for t in result.targets
+    )
+    return dataclasses.replace(result, targets=targets)

@@ -93,6 +93,10 @@ class ImageListSource:
     def __init__(self, paths: list[Path], grey: bool = False):
         self.paths = paths
         self.grey = grey
+        self.scale = 1
+        """JPEG files are decoded at ``1 / scale`` of their size (libjpeg's DCT scaling: 1, 2, 4
+        or 8); other formats are read whole (:class:`pipeline.io.sequence.Sequence` resizes
+        them)."""
 
     def __len__(self) -> int:
         return len(self.paths)
@@ -111,7 +115,7 @@ class ImageListSource:
         if not data:
             raise InputError(f"unreadable frame {index0 + 1}: {path} is empty (0 bytes)")
         jpeg = path.suffix.lower() in (".jpg", ".jpeg")
-        image = _decode_jpeg(data, self.grey) if jpeg else None
+        image = _decode_jpeg(data, self.grey, self.scale) if jpeg else None
         if image is None:
             flag = cv2.IMREAD_GRAYSCALE if self.grey and jpeg else cv2.IMREAD_UNCHANGED
             try:
@@ -134,17 +138,24 @@ class ImageListSource:
             yield self.read(i)
 
 
-def _decode_jpeg(data: bytes, grey: bool) -> np.ndarray | None:
+def _decode_jpeg(data: bytes, grey: bool, scale: int = 1) -> np.ndarray | None:
     """A JPEG decoded by libjpeg-turbo through simplejpeg (about twice OpenCV's ``imdecode``
     rate on 1080p, the same pixels: tested): BGR, or its luminance for ``grey`` or a one-channel
-    file. None where simplejpeg declines (CMYK, a file libjpeg only warns about, not a JPEG):
-    OpenCV then decodes it as before, warnings and all."""
+    file; with ``scale`` 2, 4 or 8, at ``ceil(size / scale)`` by libjpeg's DCT scaling (the
+    inverse DCT of each block's low frequencies: a decode that costs less the smaller it is).
+    None where simplejpeg declines (CMYK, a file libjpeg only warns about, not a JPEG): OpenCV
+    then decodes it as before, warnings and all."""
     try:
-        _h, _w, space, _sub = simplejpeg.decode_jpeg_header(data)
+        h, w, space, _sub = simplejpeg.decode_jpeg_header(data)
         if space not in ("Gray", "YCbCr"):
             return None
         out = simplejpeg.decode_jpeg(
-            data, colorspace="GRAY" if grey or space == "Gray" else "BGR", strict=True
+            data,
+            colorspace="GRAY" if grey or space == "Gray" else "BGR",
+            strict=True,
+            min_height=-(-h // scale),
+            min_width=-(-w // scale),
+            min_factor=scale,
         )
     except ValueError:
         return None

@@ -79,7 +79,9 @@ class FramePair:
         The IR frame as stored (uint16 for 16-bit sensors).
     visible_encoded, infrared_encoded : EncodedFrame, optional
         The source bytes when the frame came from a JPEG/PNG file that still matches the
-        array (the recording passes them through).
+        array, or the array at ``scale`` (the recording passes them through).
+    scale : int
+        The arrays are ``1 / scale`` of the source frames (``Sequence.decode_at``); 1, 2, 4 or 8.
 
     Examples
     --------
@@ -95,6 +97,7 @@ class FramePair:
     infrared_raw: np.ndarray | None = None
     visible_encoded: EncodedFrame | None = None
     infrared_encoded: EncodedFrame | None = None
+    scale: int = 1
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -269,6 +272,25 @@ class Sequence:
         self.ir_resize = ir_resize  # original IR (W, H) when IR is resized to the visible size
         self.init_file = init_file
         self.n_frames = len(next(iter(sources.values())))
+        self.scale = 1
+        """Frames are read at ``1 / scale`` of their size (:meth:`decode_at`)."""
+
+    def decode_at(self, scale: int) -> None:
+        """Read every frame from now on at ``1 / scale`` of its size (1, 2, 4 or 8): JPEG files
+        decoded there by libjpeg's DCT scaling, other frames resized (area average) to
+        ``ceil(size / scale)``. ``width`` and ``height`` stay the source's; the frames'
+        ``scale`` says by how much their arrays are smaller."""
+        if scale not in (1, 2, 4, 8):
+            raise ValueError(f"decode scale must be 1, 2, 4 or 8; got {scale}")
+        self.scale = scale
+        for src in self.sources.values():
+            if isinstance(src, ImageListSource):
+                src.scale = scale
+
+    @property
+    def scaled_size(self) -> tuple[int, int]:
+        """(W, H) of the frames as read: the source's size over :attr:`scale`, rounded up."""
+        return -(-self.width // self.scale), -(-self.height // self.scale)
 
     def __len__(self) -> int:
         return self.n_frames
@@ -331,24 +353,21 @@ class Sequence:
     def _pair(self, index: int, raw: dict[str, RawFrame]) -> FramePair:
         vis = raw.get("visible")
         ir = raw.get("infrared")
+        size = self.scaled_size
         visible = None
         if vis is not None:
-            img = vis.image
+            img = self._at_scale(index, "visible", vis.image, (self.width, self.height))
             if img.dtype != np.uint8:
                 img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
             visible = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img
-            self._check_size(index, "visible", visible)
         infrared = ir_raw = ir_enc = None
         if ir is not None:
-            ir_raw = ir.image
+            own = self.ir_resize or (self.width, self.height)
+            ir_raw = self._at_scale(index, "infrared", ir.image, own)
             infrared = self.ir_norm.apply(ir_raw)
             if self.ir_resize is not None:  # the source bytes no longer match: the sink re-encodes
-                self._check_size(index, "infrared", infrared, self.ir_resize)
-                infrared = cv2.resize(
-                    infrared, (self.width, self.height), interpolation=cv2.INTER_LINEAR
-                )
+                infrared = cv2.resize(infrared, size, interpolation=cv2.INTER_LINEAR)
             else:
-                self._check_size(index, "infrared", infrared)
                 ir_enc = ir.encoded  # None for 16-bit frames (frames.py)
         return FramePair(
             index=index,
@@ -357,7 +376,22 @@ class Sequence:
             infrared_raw=ir_raw,
             visible_encoded=vis.encoded if vis is not None else None,
             infrared_encoded=ir_enc,
+            scale=self.scale,
         )
+
+    def _at_scale(
+        self, index: int, channel: str, img: np.ndarray, own: tuple[int, int]
+    ) -> np.ndarray:
+        """``img`` (a channel's frame, ``own`` (W, H) at full size) at :attr:`scale`: checked
+        against its size, as decoded (a JPEG already at scale) or area-resized there."""
+        if self.scale == 1:
+            self._check_size(index, channel, img, own)
+            return img
+        small = (-(-own[0] // self.scale), -(-own[1] // self.scale))
+        if (img.shape[1], img.shape[0]) == small:
+            return img
+        self._check_size(index, channel, img, own)
+        return cv2.resize(img, small, interpolation=cv2.INTER_AREA)
 
     def _check_size(
         self, index: int, channel: str, img: np.ndarray, expect: tuple[int, int] | None = None

@@ -265,6 +265,10 @@ class RerunSink:
             enc = getattr(frames, f"{ch}_encoded")
             if enc is None:
                 img = getattr(frames, ch)
+                if frames.scale > 1:  # the boxes are in the source's px: show it at its size
+                    h, w = img.shape[:2]
+                    size = (w * frames.scale, h * frames.scale)
+                    img = cv2.resize(img, size, interpolation=cv2.INTER_NEAREST)
                 _ok, jpg = cv2.imencode(
                     ".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, self.cfg.jpeg_quality]
                 )
