@@ -65,10 +65,7 @@ def _at_scale(targets: list[InitTarget], scale: int) -> list[InitTarget]:
     """``targets`` (source px) in the px of frames read at ``1 / scale``."""
     if scale == 1:
         return targets
-    return [
-        InitTarget(t.id, BBox(t.box.x / scale, t.box.y / scale, t.box.w / scale, t.box.h / scale))
-        for t in targets
-    ]
+    return [InitTarget(t.id, t.box.times(1 / scale)) for t in targets]
 
 
 def track(

@@ -122,6 +122,11 @@ class BBox:
         """Same centre, width and height multiplied by ``factor``."""
         return BBox.from_center(self.cx, self.cy, self.w * factor, self.h * factor)
 
+    def times(self, factor: float) -> BBox:
+        """Every coordinate times ``factor``: the box in the px of a frame ``factor`` times as
+        large."""
+        return BBox(self.x * factor, self.y * factor, self.w * factor, self.h * factor)
+
     def with_center(self, cx: float, cy: float) -> BBox:
         return BBox.from_center(cx, cy, self.w, self.h)
 
@@ -369,10 +374,6 @@ class FrameResult:
         return None
 
 
-def _times(b: BBox, f: float) -> BBox:
-    return BBox(b.x * f, b.y * f, b.w * f, b.h * f)
-
-
 def zoomed(result: FrameResult, factor: float) -> FrameResult:
     """``result`` with every frame-px quantity of its targets times ``factor``: boxes, contours,
     overlays, and the diagnostics whose names end in ``_px`` (times ``factor``) or ``_px2``
@@ -396,9 +397,9 @@ def zoomed(result: FrameResult, factor: float) -> FrameResult:
     targets = tuple(
         dataclasses.replace(
             t,
-            box=_times(t.box, factor),
+            box=t.box.times(factor),
             contour=tuple(np.asarray(c, np.float64) * factor for c in t.contour),
-            overlays={k: _times(b, factor) for k, b in t.overlays.items()},
+            overlays={k: b.times(factor) for k, b in t.overlays.items()},
             diagnostics={k: v * unit(k) for k, v in t.diagnostics.items()},
         )
         for t in result.targets
