@@ -926,16 +926,16 @@ def reused_window(reuse: WindowSamples, win: Window, cfg: AppearanceConfig) -> n
     if math.hypot(dx, dy) > cfg.window_reuse_px or edge > cfg.window_reuse_px:
         return None
     fx, fy = reuse.box.w / reuse.template[0], reuse.box.h / reuse.template[1]
-    return _shifted(reuse.spectra, dy / (fy * cfg.cell_px), dx / (fx * cfg.cell_px))
+    w = reuse.template[0] // cfg.cell_px  # the features' width: the spectra hold w // 2 + 1
+    return _shifted(reuse.spectra, dy / (fy * cfg.cell_px), dx / (fx * cfg.cell_px), w)
 
 
 @numba.njit(cache=True, boundscheck=False, nogil=True)
-def _shifted(F, sy, sx):  # pragma: no cover (compiled)
-    """The spectra ``F`` (h, w // 2 + 1, C) of features ``f`` (rfft2 over the first two axes) of
-    ``g(y, x) = f(y + sy, x + sx)``: each frequency times ``exp(2 pi i (ky sy / h + kx sx / w))``,
-    ``ky`` signed, ``w`` taken as even."""
+def _shifted(F, sy, sx, w):  # pragma: no cover (compiled)
+    """The spectra ``F`` (h, w // 2 + 1, C) of features ``f`` (h, w, C; rfft2 over the first two
+    axes) of ``g(y, x) = f(y + sy, x + sx)``: each frequency times ``exp(2 pi i (ky sy / h + kx
+    sx / w))``, ``ky`` signed."""
     h, wf, C = F.shape
-    w = 2 * (wf - 1)
     out = np.empty_like(F)
     for y in range(h):
         ky = y if y <= h // 2 else y - h
@@ -1135,7 +1135,16 @@ def detect(
         else ((q, float("nan")) if model.channels[0] else (float("nan"), q))
     )
     kept = WindowSamples(win.box, win.template, Z) if cfg.window_reuse_px > 0 else None
-    d = Detection((cx, cy), peak, q, sz, 1.0, support, resp if keep_response else None, None, kept)
+    d = Detection(
+        (cx, cy),
+        peak,
+        q,
+        sz,
+        1.0,
+        support,
+        resp if keep_response else None,
+        window_samples=kept,
+    )
     return rescale(model, d, vis, ir, cfg) if with_scale else d
 
 
@@ -1312,7 +1321,7 @@ def warm_up() -> None:
     for dtype in (np.complex128, np.float32):  # the filters' numerators and denominators
         blend(np.zeros(2, dtype), np.zeros(2, dtype), 0.5)
     _moved_scales(np.ones((2, 3), np.float32), np.ones(3, np.float32), 0.5)
-    _shifted(z, 0.5, 0.5)
+    _shifted(z, 0.5, 0.5, 2)
     _filter_terms(_label_fft(2, 2, 1.0, 1.0), z)
     fs = np.zeros((2, 3), np.complex64)
     num, den = _scale_terms(_scale_label_fft(5), fs)

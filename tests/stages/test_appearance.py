@@ -278,3 +278,16 @@ def test_the_compiled_filter_terms_equal_numpys_to_rounding():
     np.testing.assert_allclose(
         resp, np.sum(np.conj(s_num) * Fs, axis=0) / (s_den + 0.01), rtol=1e-12
     )
+
+
+@pytest.mark.parametrize("shape", [(6, 9), (7, 8), (5, 5)])
+def test_a_window_moved_by_whole_cells_is_the_features_rolled_whatever_their_parity(shape):
+    """:func:`reused_window` on features of odd or even height and width: a window one cell to
+    the right and one down gives the detection's features circularly shifted by exactly that."""
+    h, w = shape
+    f = np.random.default_rng(5).normal(size=(h, w, 2)).astype(np.float32)
+    cfg = A.AppearanceConfig(window_reuse_px=6.0)
+    r = A.WindowSamples(BBox(0.0, 0.0, 4.0 * w, 4.0 * h), (4 * w, 4 * h), A._rfft2(f))
+    F = A.reused_window(r, A.Window(BBox(4.0, 4.0, 4.0 * w, 4.0 * h), r.template), cfg)
+    moved = A._irfft2(F.astype(np.complex128), (h, w))
+    np.testing.assert_allclose(moved, np.roll(f, (-1, -1), axis=(0, 1)), atol=1e-5)
