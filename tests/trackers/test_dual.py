@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import itertools
-import math
 
 import numpy as np
 import pytest
@@ -113,13 +112,12 @@ def test_a_target_that_turns_while_hidden_is_searched_for_where_it_was_seen(tmp_
     assert seen >= 0.7 and unseen <= 0.6 and default >= 0.65, (seen, unseen, default)
 
 
-def _runner(speed_px: float, height_px: float):
+def _runner(speed_px: float, height_px: float, xs=(60, 260, 120, 250, 80, 200)):
     """A person running to and fro across a plain street at ``speed_px`` a frame from its first
-    frame, turning at each end: no distractor, no occluder."""
+    frame, turning at each of ``xs`` (px): no distractor, no occluder."""
     from pipeline.synthetic.scenarios import PURPLE, keyframes
     from pipeline.synthetic.scene import Actor, Scene
 
-    xs = [60, 260, 120, 250, 80, 200]
     points, t = [(1.0, 60.0, 130.0, 1.0)], 1.0
     for a, b in itertools.pairwise(xs):
         t += abs(b - a) / speed_px
@@ -148,47 +146,30 @@ def test_a_fast_target_of_unknown_motion_is_measured_within_the_predictions_unce
 
 
 def test_a_target_walking_to_and_fro_is_followed_through_its_turns(tmp_path):
-    """Random development seed 340, target 3: a person 11 px wide walks to and fro at 10 px a
-    frame, turning every 10 to 20 frames. Over 80 frames it is followed with few coasting frames
-    by the four parts that look where a turn takes it: the filter's search at the last
-    measurement and behind it, the reach that grows with its speed (tracked and missing), and
-    no coast restarted on the line it had before the turn; without any one of them it coasts
-    through the turns and is off by more than 20 px on at least 30 % of the frames."""
-    from pipeline.synthetic import synthesize_random
+    """A person 26 px tall (11 px wide) walks to and fro at 10 px a frame, turning after 110 to
+    180 px (every 11 to 18 frames), for 119 frames. It is followed with few coasting frames
+    (P@20 0.983-1.000 and 0-2 coasting frames under level-set step moves of +-1e-7 and +-2e-7
+    relative); without the filter's search behind the last measurement (``turn_search``) it
+    coasts through the turns (P@20 0.563, 53 coasting frames), and likewise with a reach that
+    does not grow with its speed (0.664, 40). The reach kept while missing and the coast not
+    restarted on the line before a turn have their own tests (``reach_missing`` in
+    ``test_dual_decide.py``, ``rewind_tolerance`` below)."""
+    from pipeline.synthetic import synthesize
 
-    d = synthesize_random(tmp_path / "s", 340, targets=(2, 3), progress=False)
-    truth = np.loadtxt(d / "gt.txt", delimiter=",")
-    truth = truth[truth[:, 1] == 3]
-    centre = {int(r[0]): (r[2] + r[4] / 2, r[3] + r[5] / 2) for r in truth}
+    xs = (60, 200, 90, 260, 110, 230, 70, 250, 100)
+    d = synthesize(_runner(10.0, 26.0, xs), tmp_path / "s", seed=0, progress=False)
     variants = {
         "all": [],
         "turns": ["dual.decider.turn_search=false"],
-        "reach-missing": ["dual.decider.reach_missing=false"],
         "reach-speed": ["dual.decider.jump_speed=0"],
-        "rewind": ["dual.motion.rewind_tolerance=0"],
     }
     p20, coast = {}, {}
     for name, sets in variants.items():
-        out = tmp_path / name
-        run_track(
-            d,
-            RunOptions(
-                tracker="dual", out_dir=out, rrd=False, plots=False, sets=sets, stop_frame=80
-            ),
-        )
-        rows = csv.DictReader((out / "targets.csv").read_text().splitlines())
-        table = [r for r in rows if r["id"] == "3"]
-        err = [
-            math.hypot(
-                float(r["x_px"]) + float(r["w_px"]) / 2 - centre[int(r["frame"])][0],
-                float(r["y_px"]) + float(r["h_px"]) / 2 - centre[int(r["frame"])][1],
-            )
-            for r in table
-        ]
-        p20[name] = float(np.mean(np.array(err) <= 20))
-        coast[name] = sum(r["decision"].startswith(("coast", "lost")) for r in table)
-    assert p20["all"] >= 0.9 and coast["all"] <= 25, (p20, coast)
-    assert all(p20[k] <= 0.7 for k in variants if k != "all"), p20
+        p20[name] = _p20(d, tmp_path / name, sets)
+        rows = csv.DictReader((tmp_path / name / "targets.csv").read_text().splitlines())
+        coast[name] = sum(r["decision"].startswith(("coast", "lost")) for r in rows)
+    assert p20["all"] >= 0.95 and coast["all"] <= 5, (p20, coast)
+    assert p20["turns"] <= 0.7 and p20["reach-speed"] <= 0.75, p20
 
 
 def test_a_confident_peak_on_what_hid_the_target_does_not_stop_its_search(tmp_path):
