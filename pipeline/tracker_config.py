@@ -561,6 +561,7 @@ class DualConfig(Section):
                 start_at="meanshift",
                 warm_start=False,
                 closing_fraction=0.0,
+                retry_empty_frames=1,
             ),
             appearance=None,
             extent=None,

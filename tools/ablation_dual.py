@@ -45,6 +45,7 @@ VARIANTS: dict[str, list[str]] = {
     "-motion-prior": ["dual.motion.search_from=last-position", "dual.contour.start_at=meanshift"],
     "-warm-start": ["dual.contour.warm_start=false"],
     "-closing": ["dual.contour.closing_fraction=0"],
+    "-empty-retry": ["dual.contour.retry_empty_frames=1"],
     "paper": [],  # data/dual-paper.toml
 }
 

@@ -69,6 +69,37 @@ class ContourCue:
         shift = (start[0] - t.memory_center[0], start[1] - t.memory_center[1])
         return extract_contour(ir, expected, self.cfg, self.levelset, memory, shift)
 
+    def due(self, t: DualTarget, frame: int, confident: bool) -> bool:
+        """Whether ``t``'s level set runs at ``frame``: always, unless it has no level set to
+        warm-start from, its last ``n`` cold starts found nothing, ``n`` over
+        ``retry_after_empty``, the filter detects it ``confident``-ly, and fewer than ``2 ** (n
+        - retry_after_empty)`` frames (at most ``retry_empty_frames``) have passed since the
+        last (``ContourConfig``)."""
+        over = t.empty_starts - self.cfg.retry_after_empty
+        if over <= 0 or not confident or t.missing > 0:
+            return True
+        if t.memory is not None and t.memory.phi.size > 1:
+            return True
+        wait = min(2 ** min(over, 30), self.cfg.retry_empty_frames)
+        return frame - t.empty_start_frame >= wait
+
+    @staticmethod
+    def not_run() -> ContourResult:
+        """The result of a frame whose level set did not run (:meth:`due`)."""
+        empty = LevelSetMemory(np.zeros((1, 1), np.float32), (0, 0))
+        return ContourResult(False, ContourReason.NOT_RUN, None, (), 0, 0.0, empty)
+
+    @staticmethod
+    def empty_starts(t: DualTarget, c: ContourResult | None, frame: int) -> tuple[int, int]:
+        """``t``'s (``empty_starts``, ``empty_start_frame``) after this frame's contour ``c``:
+        one more after a cold start that found nothing, none after one that found something,
+        unchanged without a level set run."""
+        if c is None or c.reason == ContourReason.NOT_RUN or c.warm:
+            return t.empty_starts, t.empty_start_frame
+        if c.reason == ContourReason.NO_COMPONENT:
+            return t.empty_starts + 1, frame
+        return 0, -1
+
     def group(
         self,
         ir: np.ndarray,

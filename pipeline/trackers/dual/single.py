@@ -149,13 +149,17 @@ def _contour(
     timing: dict[str, float],
     start: tuple[float, float] | None,
 ) -> ContourResult | None:
-    """The IR contour, started where the other cues put the target (or at ``start``, cold)."""
+    """The IR contour, started where the other cues put the target (or at ``start``, cold),
+    or :meth:`~pipeline.trackers.dual.contour.ContourCue.not_run` where its cold starts keep
+    finding nothing and the filter is confident."""
     if mode not in ("dual", "ir") or frames.infrared is None:
         return None
     clock = time.perf_counter()
     cold = start is not None
+    confident = cue is not None and dual.decider.filter_confident(cue.psr)
     if start is None:
-        confident = cue is not None and dual.decider.filter_confident(cue.psr)
+        if not dual.contour.due(cs.t, frames.index, confident):
+            return dual.contour.not_run()
         start = dual.contour.start(
             cue.box if confident and cue is not None else None,
             cs.y1,
@@ -273,6 +277,7 @@ def update(
     old = t.status if was is None else was
     events += dual.lifecycle.events(t.id, old, d, c.reason if c is not None else None)
     memory, memory_center = _contour_memory(t, d, c)
+    empty_starts, empty_start_frame = dual.contour.empty_starts(t, c, frames.index)
     nt = dataclasses.replace(
         t,
         box=out,
@@ -292,6 +297,8 @@ def update(
         case=d.case.value,
         speed=step_speed(history) if len(history) >= 2 else t.speed,
         partial=d.partial,
+        empty_starts=empty_starts,
+        empty_start_frame=empty_start_frame,
     )
     return nt, result(dual, m, d, out, nt.missing, colour, rho2), events
 

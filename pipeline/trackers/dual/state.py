@@ -45,7 +45,9 @@ class DualTarget:
     the frame of its last split from a group (re-merge hysteresis); ``case`` its last
     decision's case; ``speed`` how far it moved a frame over its last clean measurements, px
     (kept while its history is too short to tell: after it was found again); ``partial``
-    whether its last measurement was over a cut or collapsed contour.
+    whether its last measurement was over a cut or collapsed contour; ``empty_starts`` how
+    many cold-started level sets running found nothing, the last at frame ``empty_start_frame``
+    (``contour.retry_empty_frames``).
     """
 
     id: int
@@ -66,6 +68,8 @@ class DualTarget:
     case: str = "init"
     speed: float = 0.0
     partial: bool = False
+    empty_starts: int = 0
+    empty_start_frame: int = -1
 
     @property
     def held(self) -> bool:
