@@ -55,10 +55,17 @@ def iter_track(
         except StopIteration:
             return
         t1 = time.perf_counter()
-        result = engine.start(frames, started) if frames.index == 1 else engine.step(frames)
-        t2 = time.perf_counter()
-        result = zoomed(result, seq.scale)
-        yield TrackStep(frames, result, t2 - t1, t1 - t0)
+        result = _engine_step(engine, frames, started, seq.scale)
+        yield TrackStep(frames, result, time.perf_counter() - t1, t1 - t0)
+
+
+def _engine_step(
+    engine: Engine, frames: FramePair, started: list[InitTarget], scale: int
+) -> FrameResult:
+    """One frame of ``engine`` (``start`` with ``started``, in the px of the frames as read, on
+    frame 1; ``step`` after), its result in the source's px."""
+    result = engine.start(frames, started) if frames.index == 1 else engine.step(frames)
+    return zoomed(result, scale)
 
 
 def _at_scale(targets: list[InitTarget], scale: int) -> list[InitTarget]:
@@ -372,8 +379,7 @@ def run_track(
     has_truth = seq.truth.has_truth
 
     def step(frames: FramePair) -> TrackItem:
-        result = engine.start(frames, started) if frames.index == 1 else engine.step(frames)
-        result = zoomed(result, scale)  # frame px of the source frames
+        result = _engine_step(engine, frames, started, scale)
         for t in result.targets:
             if t.id not in boxes:
                 boxes[t.id] = np.full((seq.n_frames, 4), np.nan)
