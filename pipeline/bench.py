@@ -20,8 +20,11 @@ against the peers), never as absolute promises. With several targets the table a
 has identity purity, ID switches, MOTA and IDF1.
 
 ``repeat`` (``--repeat N``) times every measurement N times and keeps the fastest, as ``timeit``
-does: on a shared or virtual machine other work only ever adds time. Accuracy comes from the last
-run (the run folder kept); the trackers are deterministic apart from MIL.
+does: on a shared or virtual machine other work only ever adds time. The trackers' runs on a
+sequence go in rounds (every tracker once, then every tracker again), so that a slow spell of the
+machine, which can last a whole run, lowers one run of each tracker rather than every run of one
+and the ratios between them. Accuracy comes from the last run (the run folder kept); the trackers
+are deterministic apart from MIL.
 
 ``run_scaling`` (``dualtrack bench --targets 1,2,4,8``) measures how the cost grows with
 the number of targets: it renders the ``walkers<n>`` scenes (n people, each in its own
@@ -125,26 +128,12 @@ def run_bench(
             except InputError as exc:  # an unreadable sequence: reported, the others still run
                 rows.append({"sequence": seq_name, "tracker": "-", "failed": str(exc)})
                 continue
-            for name in names:
-                row: dict[str, object] = {
-                    "sequence": seq_name,
-                    "tracker": name,
-                    "frames": n_frames,
-                    "fps_decode": round(dec_fps, 1),
-                    "fps_decode_opencv": round(cv_fps, 1) if cv_fps else None,
-                    "repeat": repeat,
-                }
-                if name not in runnable:
-                    row["skipped"] = "needs opencv-contrib (not installed here)"
-                    rows.append(row)
-                    continue
-                fps_trk: list[float] = []
-                fps_cpu: list[float] = []
-                fps_e2e: list[float] = []
-                fastest: dict[str, object] | None = (
-                    None  # the summary of the run with the best fps_tracking
-                )
-                for _ in range(repeat):
+            runs: dict[str, list] = {n: [] for n in names if n in runnable}
+            stopped: dict[str, str] = {}
+            for _ in range(repeat):  # round by round: a slow spell of the machine falls on every
+                for name in runs:  # tracker's runs alike, not on all of one tracker's
+                    if name in stopped:
+                        continue
                     res = run_track(
                         sd,
                         RunOptions(
@@ -158,47 +147,27 @@ def run_bench(
                             **open_kw,  # type: ignore[arg-type]
                         ),
                     )
-                    s = res.summary
-                    if res.error or res.interrupted:
-                        break
-                    fps_trk += [float(s["fps_tracking"])] if s.get("fps_tracking") else []
-                    fps_cpu += [float(s["fps_tracking_cpu"])] if s.get("fps_tracking_cpu") else []
-                    fps_e2e += [float(s["fps_end_to_end"])] if s.get("fps_end_to_end") else []
-                    if fastest is None or float(s.get("fps_tracking") or 0) > float(
-                        fastest.get("fps_tracking") or 0
-                    ):
-                        fastest = s
-                if res.error or res.interrupted:
-                    row["failed"] = res.error or "interrupted"
-                    rows.append(row)
                     if res.interrupted:
                         raise KeyboardInterrupt
-                    continue
-                m = s.get("metrics") or {}
-                row.update(
-                    {
-                        "p20": m.get("p20") if isinstance(m, dict) else None,
-                        "auc": m.get("auc") if isinstance(m, dict) else None,
-                        **_multi_metrics(m),
-                        "fps_tracking": max(fps_trk) if fps_trk else None,
-                        "fps_tracking_cpu": max(fps_cpu) if fps_cpu else None,
-                        "fps_end_to_end": max(fps_e2e) if fps_e2e else None,
-                        "fps_tracking_runs": fps_trk,
-                        "stage_seconds": (fastest or s).get("stage_seconds"),
-                        "decode_scale": s.get("decode_scale"),
-                        "complete": s.get("complete"),
-                    }
-                )
-                fe = max(fps_e2e) if fps_e2e else None  # the kept (fastest) end-to-end rate
-                ft = max(fps_trk) if fps_trk else None
-                row["end_to_end_vs_decode"] = round(fe / dec_fps, 3) if fe and dec_fps else None
-                row["end_to_end_vs_opencv_decode"] = (
-                    round(fe / cv_fps, 3) if fe and cv_fps else None
-                )
-                # the overlap of decoding, tracking and writing: 1.0 when end to end runs at the
-                # slower of the two
-                bound = min(ft, dec_fps) if ft and dec_fps else None
-                row["end_to_end_vs_bound"] = round(fe / bound, 3) if fe and bound else None
+                    if res.error:
+                        stopped[name] = res.error
+                        continue
+                    runs[name].append(res.summary)
+            for name in names:
+                row: dict[str, object] = {
+                    "sequence": seq_name,
+                    "tracker": name,
+                    "frames": n_frames,
+                    "fps_decode": round(dec_fps, 1),
+                    "fps_decode_opencv": round(cv_fps, 1) if cv_fps else None,
+                    "repeat": repeat,
+                }
+                if name not in runnable:
+                    row["skipped"] = "needs opencv-contrib (not installed here)"
+                elif name in stopped:
+                    row["failed"] = stopped[name]
+                else:
+                    row.update(_timed_row(runs[name], dec_fps, cv_fps))
                 rows.append(row)
         _add_peer_ratios(rows)
         if json_path is not None:
@@ -207,6 +176,46 @@ def run_bench(
         if tmp is not None:
             tmp.cleanup()
     return rows
+
+
+def _timed_row(
+    summaries: list[dict[str, object]], dec_fps: float, cv_fps: float | None
+) -> dict[str, object]:
+    """A tracker's figures on one sequence from the summaries of its runs (in order): each rate
+    the best of the runs, the stages of the fastest tracking run, accuracy from the last run."""
+
+    def rates(key: str) -> list[float]:
+        return [float(s[key]) for s in summaries if s.get(key)]  # type: ignore[arg-type]
+
+    fps_trk, fps_cpu, fps_e2e = (
+        rates("fps_tracking"),
+        rates("fps_tracking_cpu"),
+        rates("fps_end_to_end"),
+    )
+    fastest = max(summaries, key=lambda s: float(s.get("fps_tracking") or 0))  # type: ignore[arg-type]
+    last = summaries[-1]
+    m = last.get("metrics") or {}
+    row: dict[str, object] = {
+        "p20": m.get("p20") if isinstance(m, dict) else None,
+        "auc": m.get("auc") if isinstance(m, dict) else None,
+        **_multi_metrics(m),
+        "fps_tracking": max(fps_trk) if fps_trk else None,
+        "fps_tracking_cpu": max(fps_cpu) if fps_cpu else None,
+        "fps_end_to_end": max(fps_e2e) if fps_e2e else None,
+        "fps_tracking_runs": fps_trk,
+        "stage_seconds": fastest.get("stage_seconds"),
+        "decode_scale": last.get("decode_scale"),
+        "complete": last.get("complete"),
+    }
+    fe = max(fps_e2e) if fps_e2e else None  # the kept (fastest) end-to-end rate
+    ft = max(fps_trk) if fps_trk else None
+    row["end_to_end_vs_decode"] = round(fe / dec_fps, 3) if fe and dec_fps else None
+    row["end_to_end_vs_opencv_decode"] = round(fe / cv_fps, 3) if fe and cv_fps else None
+    # the overlap of decoding, tracking and writing: 1.0 when end to end runs at the slower of
+    # the two
+    bound = min(ft, dec_fps) if ft and dec_fps else None
+    row["end_to_end_vs_bound"] = round(fe / bound, 3) if fe and bound else None
+    return row
 
 
 def _multi_metrics(m: object) -> dict[str, object]:

@@ -79,6 +79,34 @@ def test_bench_repeat_reports_the_kept_runs_ratio_and_stages(scene, monkeypatch)
     assert r["stage_seconds"] == {"x": 0.1}  # the stages of the fastest tracking run
 
 
+def test_bench_runs_the_trackers_in_rounds(scene, monkeypatch):
+    """Every tracker once, then every tracker again: a slow spell of the machine cannot fall on
+    all of one tracker's runs and none of another's."""
+    import types
+
+    import pipeline.bench as B
+
+    order: list[str] = []
+
+    def fake_run(seq, opts):
+        order.append(opts.tracker)
+        fps = 100.0 + len(order)
+        return types.SimpleNamespace(
+            summary={"fps_tracking": fps, "fps_tracking_cpu": fps, "metrics": {"p20": 1.0}},
+            error="broken" if opts.tracker == "camshift" and len(order) > 2 else None,
+            interrupted=False,
+        )
+
+    monkeypatch.setattr(B, "run_track", fake_run)
+    monkeypatch.setattr(B, "decode_rate", lambda *a, **k: (600.0, 32))
+    rows = B.run_bench([scene("pole-fast")], ["meanshift", "camshift"], repeat=3)
+    # camshift fails in the second round and is not run again; meanshift keeps its three
+    assert order == ["meanshift", "camshift", "meanshift", "camshift", "meanshift"]
+    assert rows[0]["fps_tracking_runs"] == [101.0, 103.0, 105.0]
+    assert rows[0]["fps_tracking_cpu"] == 105.0
+    assert rows[1]["failed"] == "broken" and "fps_tracking" not in rows[1]
+
+
 def test_fps_vs_targets_table(tmp_path):
     from pipeline.bench import format_scaling, run_scaling
 
