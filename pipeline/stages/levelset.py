@@ -643,9 +643,9 @@ def _band_iterations(
                 inv = one / (s + tiny)
                 nx[k] = dx * inv
                 ny[k] = dy * inv
-                # the polynomial on every lane, then a select: evaluated only where s < 1, its
-                # coefficients' loads became masked gathers in every vector (a third of the
-                # kernel's time); s2 capped so that the discarded lanes stay finite
+                # the polynomial on every lane, then a select: evaluated under the branch, its
+                # coefficients' loads become masked gathers in every vector; s2 is capped so
+                # that the discarded lanes stay finite
                 poly = _poly(min(s2, one), dps_c)
                 dps = poly if s < one else one - inv  # s + tiny == s for s >= 1
                 qx[k] = (dps - one) * dx
