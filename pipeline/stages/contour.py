@@ -131,10 +131,21 @@ class ContourConfig(Section):
 
 @dataclass(frozen=True)
 class LevelSetMemory:
-    """The level-set function of a frame and where its region lay (frame px of its corner)."""
+    """The level-set function of a frame and where its region lay (frame px of its corner);
+    a 1 x 1 ``phi`` (:meth:`empty`) means no level set ran."""
 
     phi: np.ndarray
     origin: tuple[int, int]
+
+    @classmethod
+    def empty(cls, origin: tuple[int, int] = (0, 0)) -> LevelSetMemory:
+        """The memory of a frame without a level set: nothing to warm-start from."""
+        return cls(np.zeros((1, 1), np.float32), origin)
+
+    @property
+    def warm(self) -> bool:
+        """Whether it holds a level set a later frame can warm-start from."""
+        return self.phi.size > 1
 
 
 class ContourReason(enum.StrEnum):
@@ -368,7 +379,7 @@ def extract_contour(
     H, W = ir.shape
     x0, y0, x1, y1 = region(expected, cfg, W, H)
     roi = ir[y0:y1, x0:x1]
-    empty_mem = LevelSetMemory(np.zeros((1, 1), np.float32), (x0, y0))
+    empty_mem = LevelSetMemory.empty((x0, y0))
     if roi.shape[0] < 8 or roi.shape[1] < 8:
         return ContourResult(False, ContourReason.NO_COMPONENT, None, (), 0, 0.0, empty_mem)
     k = round(cfg.closing_fraction * (part_width or expected.w)) | 1
@@ -377,7 +388,7 @@ def extract_contour(
             roi, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
         )
     em = edge_map(roi, ls_cfg)
-    warm = cfg.warm_start and memory is not None and memory.phi.size > 1
+    warm = cfg.warm_start and memory is not None and memory.warm
     if warm:
         # type: ignore[arg-type]
         phi0 = warm_phi(memory, shift, (x0, y0), roi.shape, ls_cfg.step_height, cfg.warm_dilate_px)

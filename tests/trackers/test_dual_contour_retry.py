@@ -63,10 +63,12 @@ def test_empty_cold_starts_beyond_three_are_retried_after_2_4_8_frames_while_the
     assert _due_frames(cue, _target(6, 10, missing=1))[0] == 11
     warm = LevelSetMemory(-np.ones((20, 20), np.float32), (90, 40))
     assert _due_frames(cue, _target(6, 10, memory=warm))[0] == 11
+    # the memory of a frame whose level set did not run holds nothing to warm-start from
+    assert _due_frames(cue, _target(6, 10, memory=LevelSetMemory.empty()))[0] == 18
 
 
 def test_only_cold_starts_that_find_nothing_count_and_any_other_outcome_resets():
-    mem = LevelSetMemory(np.zeros((1, 1), np.float32), (0, 0))
+    mem = LevelSetMemory.empty()
 
     def res(reason, warm=False, box=None):
         return ContourResult(reason == ContourReason.OK, reason, box, (), 90, 0.0, mem, (), warm)

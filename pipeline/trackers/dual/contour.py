@@ -78,7 +78,7 @@ class ContourCue:
         over = t.empty_starts - self.cfg.retry_after_empty
         if over <= 0 or not confident or t.missing > 0:
             return True
-        if t.memory is not None and t.memory.phi.size > 1:
+        if t.memory is not None and t.memory.warm:
             return True
         wait = min(2 ** min(over, 30), self.cfg.retry_empty_frames)
         return frame - t.empty_start_frame >= wait
@@ -86,8 +86,9 @@ class ContourCue:
     @staticmethod
     def not_run() -> ContourResult:
         """The result of a frame whose level set did not run (:meth:`due`)."""
-        empty = LevelSetMemory(np.zeros((1, 1), np.float32), (0, 0))
-        return ContourResult(False, ContourReason.NOT_RUN, None, (), 0, 0.0, empty)
+        return ContourResult(
+            False, ContourReason.NOT_RUN, None, (), 0, 0.0, LevelSetMemory.empty()
+        )
 
     @staticmethod
     def empty_starts(t: DualTarget, c: ContourResult | None, frame: int) -> tuple[int, int]:
