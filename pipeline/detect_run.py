@@ -219,6 +219,8 @@ def run_detect(
             finish,
             force=force,
             progress=progress,
+            checkpoint_frames=cfg.rerun.batch_frames,
+            checkpoint_min_seconds=cfg.rerun.checkpoint_min_seconds,
             threads=threads,
         )
     )

@@ -451,6 +451,7 @@ def run_track(
         force=opts.force,
         progress=opts.progress,
         checkpoint_frames=cfg.rerun.batch_frames,
+        checkpoint_min_seconds=cfg.rerun.checkpoint_min_seconds,
         threads=opts.threads,
     )
     res = run_job(job)

@@ -11,11 +11,12 @@ tracker or the detector, called once per frame pair on the calling thread) and i
   (OpenCV's decoders release the GIL), the step runs on the calling thread, and a writer
   thread feeds the sinks, so decoding, tracking and writing proceed at the same time; the
   results are the same as one thread doing all three in turn (``threads=False``);
-* checkpoints: every ``checkpoint_frames`` frames the sinks write what they hold in whole
-  rows (``pipeline.sinks.rowfile``) and ``summary.json`` is replaced atomically with the
-  number of frames on disk, so even after a SIGKILL the summary says how many frames the
-  CSV files hold (a killed run's ``.rrd`` lacks its footer: ``rerun rrd verify`` refuses
-  it, but the viewer and a stream reader read every frame up to that checkpoint);
+* checkpoints: every ``checkpoint_frames`` frames, once ``checkpoint_min_seconds`` have passed
+  since the last one, the sinks write what they hold in whole rows
+  (``pipeline.sinks.rowfile``) and ``summary.json`` is replaced atomically with the number of
+  frames on disk, so even after a SIGKILL the summary says how many frames the CSV files hold
+  (a killed run's ``.rrd`` lacks its footer: ``rerun rrd verify`` refuses it, but the viewer
+  and a stream reader read every frame up to that checkpoint);
 * faults: an unreadable frame, a full disk or any error in a sink ends the run with one
   message that names the frame and the file, after every sink was closed, so the outputs
   stay valid for the frames done and ``summary.json`` says ``"complete": false``;
@@ -114,6 +115,7 @@ class Job:
     force: bool = False
     progress: bool | None = None
     checkpoint_frames: int = 16
+    checkpoint_min_seconds: float = 0.0
     threads: bool = True
 
 
@@ -224,8 +226,8 @@ class _Reader:
 
 
 class _Writer:
-    """Feeds the sinks in frame order (on its own thread, or inline), with a checkpoint every
-    ``every`` frames."""
+    """Feeds the sinks in frame order (on its own thread, or inline), with a checkpoint on every
+    ``every``-th frame that comes ``min_seconds`` or more after the last checkpoint."""
 
     def __init__(
         self,
@@ -234,6 +236,7 @@ class _Writer:
         on_checkpoint: Callable[[int], None],
         threaded: bool,
         depth: int = 32,
+        min_seconds: float = 0.0,
     ):
         self.sinks, self.every, self.on_checkpoint, self.threaded = (
             sinks,
@@ -241,6 +244,8 @@ class _Writer:
             on_checkpoint,
             threaded,
         )
+        self.min_seconds = float(min_seconds)
+        self._last_checkpoint = time.monotonic()
         self.written = 0  # frames on disk (at the last successful checkpoint)
         self.queued = 0
         self.sinks_s = 0.0
@@ -256,7 +261,10 @@ class _Writer:
         for s in self.sinks:
             s.write(frames, item)
         self._n += 1
-        if self._n % self.every == 0:
+        if (
+            self._n % self.every == 0
+            and time.monotonic() - self._last_checkpoint >= self.min_seconds
+        ):
             self._checkpoint()
         self.sinks_s += time.perf_counter() - t0
 
@@ -274,6 +282,7 @@ class _Writer:
                     undo()
             raise
         self.written = self._n
+        self._last_checkpoint = time.monotonic()
 
     def _run(self) -> None:
         while True:
@@ -385,7 +394,11 @@ def run_job(job: Job) -> LoopResult:
     with _Signals() as sig:
         sinks = job.make_sinks()
         writer = _Writer(
-            sinks, job.checkpoint_frames, lambda n: write_summary({"frames": n}), job.threads
+            sinks,
+            job.checkpoint_frames,
+            lambda n: write_summary({"frames": n}),
+            job.threads,
+            min_seconds=job.checkpoint_min_seconds,
         )
         reader = _Reader(job.seq, job.stop_frame, job.threads)
         done = 0

@@ -15,10 +15,11 @@ the output misses the truth or is missing shows on the timeline), with a ``failu
 failure starts.
 
 To keep logging well under 1 ms per frame pair, frames are buffered and written with
-``send_columns`` at each checkpoint of the run loop (every ``batch_frames`` frames), which
-also waits for them to reach the file; :meth:`RerunSink.close` writes what is left and
-closes the file with its footer, so an interrupted run leaves a recording that verifies,
-and a killed one a recording (without footer) of every frame up to its last checkpoint.
+``send_columns`` at each checkpoint of the run loop (every ``batch_frames`` frames, at most
+about every ``checkpoint_min_seconds``), which also waits for them to reach the file;
+:meth:`RerunSink.close` writes what is left and closes the file with its footer, so an
+interrupted run leaves a recording that verifies, and a killed one a recording (without
+footer) of every frame up to its last checkpoint.
 """
 
 from __future__ import annotations
@@ -41,6 +42,11 @@ from pipeline.sinks.settings import RerunConfig
 from pipeline.types import FrameResult, FrameTruth, TargetStatus, TruthMatch
 
 APP_ID = "dualtrack"
+
+BUFFER_MAX_FRAMES = 1000
+BUFFER_MAX_BYTES = 64 << 20
+"""The sink writes its buffer itself, between the run loop's checkpoints (or when used alone),
+once it holds this many frames or this many bytes of images."""
 
 PALETTE = (
     (230, 25, 75),
@@ -186,6 +192,7 @@ class RerunSink:
         self._match: dict[int, TruthMatch] = {}
         self._buf: dict[str, list] = defaultdict(list)
         self._frames: list[int] = []
+        self._bytes = 0  # of the buffered images
         self._status: dict[int, TargetStatus] = {}
         self._decision: dict[int, str] = {}
         self._known_ids: set[int] = set()
@@ -276,6 +283,7 @@ class RerunSink:
             else:
                 blob, media = enc.data, enc.media_type
             self._buf[f"{ch}/image"].append((f, blob, media))
+            self._bytes += len(blob)
         self._annotate([t.id for t in result.targets])
         shown = [t for t in result.targets if t.status != TargetStatus.LOST]
         boxes = [(t.box.cx, t.box.cy, t.box.w / 2, t.box.h / 2) for t in shown]
@@ -341,8 +349,8 @@ class RerunSink:
                     self._buf[f"targets/{tid}/truth"].append((f, m.value))
         for stage, sec in result.stage_seconds.items():
             self._buf[f"timing/{stage}_ms"].append((f, sec * 1e3))
-        # written at checkpoints; a bound when used alone
-        if len(self._frames) >= 4 * self.cfg.batch_frames:
+        # written at checkpoints; a bound between them, and when used alone
+        if len(self._frames) >= BUFFER_MAX_FRAMES or self._bytes >= BUFFER_MAX_BYTES:
             self.flush()
 
     def flush(self) -> None:
@@ -350,6 +358,7 @@ class RerunSink:
         if not self._frames:
             return
         buf, self._buf, self._frames = self._buf, defaultdict(list), []
+        self._bytes = 0
         rec = self.rec
         for key, rows in buf.items():
             if not rows:
@@ -515,6 +524,7 @@ class RerunSink:
         cut by the full disk or a footer, goes)."""
         self._closed = True
         self._buf, self._frames = defaultdict(list), []
+        self._bytes = 0
         try:
             self.rec.flush(timeout_sec=10.0)
         except RuntimeError:
