@@ -479,9 +479,6 @@ def random_scene_set(
                     ok = False
             if not ok:
                 synthesize_random(d, seed, targets, size, frames, force=True, progress=False)
-                m = _json.loads(meta.read_text())
-                m["generator"] = want
-                meta.write_text(_json.dumps(m, indent=1) + "\n")
             dirs.append(d)
             bar.update(1)
     return dirs

@@ -10,7 +10,7 @@ import pytest
 
 from pipeline.errors import InputError
 from pipeline.io.sequence import open_sequence
-from pipeline.synthetic import DISTRACTOR_ID_BASE, synthesize_random
+from pipeline.synthetic import DISTRACTOR_ID_BASE, json_ready, synthesize_random
 from pipeline.synthetic.family import (
     ATTRIBUTES,
     DEV_SEEDS,
@@ -32,6 +32,26 @@ def test_same_seed_same_bytes_and_other_seeds_differ(tmp_path):
     for f in files:
         assert (a / f).read_bytes() == (b / f).read_bytes(), f
     assert (a / "visible/00020v.jpg").read_bytes() != (c / "visible/00020v.jpg").read_bytes()
+
+
+def test_scene_json_names_the_options_that_draw_the_scene_again(tmp_path):
+    # a drawn target count consumes the generator: draw_scene(seed, (2, 3)) is not
+    # draw_scene(seed, 3), so tools that redraw a scene need the options it was written with
+    d = synthesize_random(tmp_path / "r", 7, targets=(2, 3), size=(200, 150), frames=30)
+    meta = json.loads((d / "scene.json").read_text())
+    gen = meta["generator"]
+    assert gen == {"targets": [2, 3], "size": [200, 150], "frames": 30}
+    again = draw_scene(meta["seed"], tuple(gen["targets"]), *gen["size"], gen["frames"])
+    assert json.dumps(json_ready(again.params), sort_keys=True) == json.dumps(
+        meta["params"], sort_keys=True
+    )
+    first = Renderer(again.scene, again.render_seed).render_frame(1)
+    rows = np.loadtxt(d / "gt.txt", delimiter=",", ndmin=2)
+    truth = {int(r[1]): tuple(r[2:6]) for r in rows if r[0] == 1 and r[6] == 1}
+    # gt.txt is 1-based (MOTChallenge), the renderer's boxes 0-based
+    assert truth == {
+        tid: (x + 1, y + 1, w, h) for tid, (x, y, w, h) in first.truth_visible.items() if w > 0
+    }
 
 
 def test_twenty_seeds_draw_twenty_different_scenes():

@@ -3,10 +3,12 @@
 Usage: python tools/failure_modes.py RUN_ROOT [--tracker dual] [--worst 10]
 
 ``RUN_ROOT`` is a ``dualtrack bench --random N --out RUN_ROOT`` folder (``scenes/`` and
-``runs/<tracker>/<scene>/targets.csv``). Every scene is drawn again from its seed and rendered
-once more (its ``scene.json`` names the seed and the generator options), which gives the boxes
-of the moving objects that are not targets, and each frame of each target whose output box has
-IoU < 0.5 with the truth is put in the first class that applies:
+``runs/<tracker>/<scene>/targets.csv``), or any folder laid out so: ``scenes/`` may be a set
+written by ``dualtrack synth random --seeds A-B`` and ``runs/<tracker>/`` a ``dualtrack batch``
+run over it. Every scene is drawn again from its seed and rendered once more (its
+``scene.json`` names the seed and the generator options), which gives the boxes of the moving
+objects that are not targets, and each frame of each target whose output box has IoU < 0.5
+with the truth is put in the first class that applies:
 
 ``hidden``
     the target's visibility (share of its own pixels nothing covers) is under 0.25: no tracker
@@ -85,8 +87,14 @@ def scene_failures(
     failure: ``run`` consecutive failed frames with the target at least 0.25 visible) of one
     run."""
     meta = json.loads((scene_dir / "scene.json").read_text())
-    gen = meta.get("generator") or {}
-    targets = tuple(gen["targets"]) if gen.get("targets") else None
+    gen = meta.get("generator")
+    if gen is None:
+        raise SystemExit(
+            f"{scene_dir}/scene.json names no generator options: write the scene again "
+            "(dualtrack synth random or dualtrack bench --random) to classify its failures"
+        )
+    t = gen.get("targets")
+    targets = tuple(t) if isinstance(t, list) else t
     size = tuple(gen.get("size") or (meta["width"], meta["height"]))
     frames = int(gen.get("frames") or meta["frames"])
     drawn = draw_scene(int(meta["seed"]), targets, int(size[0]), int(size[1]), frames)

@@ -424,6 +424,12 @@ def synthesize_random(
             str(i): {a: _ranges(flags[i][a]) for a in FRAME_ATTRIBUTES} for i in ids
         },
         "params": drawn.params,
+        # the arguments the scene was drawn with: draw_scene(seed, **generator) draws it again
+        "generator": {
+            "targets": list(targets) if isinstance(targets, tuple) else targets,
+            "size": [int(size[0]), int(size[1])],
+            "frames": int(frames),
+        },
     }
     (out / "scene.json").write_text(json.dumps(json_ready(meta), indent=1) + "\n")
     return out
