@@ -210,6 +210,12 @@ class DeciderConfig(Section):
     inside_fraction : float
         With ``colour_deny_rho``: the share of a measurement's area inside another target's
         that makes it lie on that target, in (0, 1]; default 0.6.
+    overlap_freezes : bool
+        A target whose measured box overlaps another target's box this frame (the paper's
+        eq. 10 merge test on the two) teaches its models nothing from the frame: the filter's
+        window and the colour histogram would hold the other target's pixels (the paper's
+        merged members do not learn either); default True. False lets each learn through the
+        overlap; a long walk side by side then adapts to the pair.
     background_share : float
         Where a still camera's IR background of the sequence is known, a filter detection whose
         box differs from it in under this share of its pixels, and whose colour does not
@@ -304,6 +310,7 @@ class DeciderConfig(Section):
     colour_veto_margin: float = param(0.2, gt=0, le=1)
     colour_deny_rho: float = param(0.35, ge=0, le=1)
     inside_fraction: float = param(0.6, gt=0, le=1)
+    overlap_freezes: bool = True
     background_share: float = param(0.05, ge=0, le=1)
     occlusion_rho: float = param(0.75, ge=0, le=1)
     colour_trust_rho: float = param(0.85, ge=0, le=1)

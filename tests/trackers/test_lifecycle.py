@@ -109,7 +109,11 @@ def _check_log(results) -> dict[EventKind, int]:
 
 
 def test_dual_log_follows_its_statuses(scene):
+    # three walkers crossing: targets that meet yield to each other (merged) and part (split)
     seen = _check_log(track(scene("crossing3"), tracker="dual"))
+    assert seen.get(K.MERGE, 0) >= 1 and seen.get(K.SPLIT, 0) >= 1
+    # a walker behind an occluder: hidden and seen again
+    seen = _check_log(track(scene("occluded-moving"), tracker="dual"))
     assert seen.get(K.OCCLUSION_START, 0) >= 1 and seen.get(K.OCCLUSION_END, 0) >= 1
 
 

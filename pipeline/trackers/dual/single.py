@@ -14,6 +14,7 @@ from pipeline.stages import detection
 from pipeline.stages.appearance import AppearanceModel, Detection
 from pipeline.stages.contour import ContourResult, LevelSetMemory
 from pipeline.stages.detection import to_grey
+from pipeline.stages.merge import merge_test
 from pipeline.stages.model_update import UpdateDecision
 from pipeline.trackers.dual.appearance import FilterCue
 from pipeline.trackers.dual.colour import ColourStep, add_time
@@ -257,14 +258,18 @@ def update(
 ) -> tuple[DualTarget, TargetResult, list[Event]]:
     """Size, models, motion, events and the reported result of one target after its decision:
     (new state, result, events). ``neighbours`` are the other targets' boxes this frame (the
-    colour extent is not measured where one is near, and a measurement over a collapsed contour
-    teaches the models nothing beside one: :func:`_near_another`). ``was`` is the status the
+    colour extent is not measured where one is near, a measurement over a collapsed contour
+    teaches the models nothing beside one, :func:`_near_another`, nor one overlapping another,
+    :func:`_overlaps_another`, with ``decider.overlap_freezes``). ``was`` is the status the
     target had before this frame where the caller measured it under another (a group's member
     after the split); the status event is the move from it (default: the target's own)."""
     cs, c = m.cs, m.contour
     t = cs.t
     clock = time.perf_counter()
-    if m.decision.partial and m.decision.learn and _near_another(m.decision.box, neighbours):
+    if m.decision.learn and (
+        (m.decision.partial and _near_another(m.decision.box, neighbours))
+        or (dual.decider.cfg.overlap_freezes and _overlaps_another(m.decision.box, neighbours))
+    ):
         m = dataclasses.replace(m, decision=dataclasses.replace(m.decision, learn=False))
     size, app_size, d, entering = _size(dual, m, neighbours)
     out = _output_box(cs, d, size)
@@ -332,6 +337,22 @@ def _size(
     )
     size, d, entering = _walked_in(dual, m, size, d)
     return size, app_size, d, entering
+
+
+def _overlaps_another(box: BBox | None, neighbours: tuple[BBox, ...]) -> bool:
+    """Another target's box overlaps ``box`` (eq. 10: the centres closer than half the summed
+    sizes on both axes).
+
+    Examples
+    --------
+    >>> _overlaps_another(BBox(0, 0, 10, 20), (BBox(9, 5, 10, 20),))
+    True
+    >>> _overlaps_another(BBox(0, 0, 10, 20), (BBox(10, 5, 10, 20), BBox(0, 20, 10, 20)))
+    False
+    """
+    if box is None:
+        return False
+    return any(merge_test(box, b) for b in neighbours)
 
 
 def _near_another(box: BBox | None, neighbours: tuple[BBox, ...]) -> bool:
