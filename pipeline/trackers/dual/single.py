@@ -266,10 +266,7 @@ def update(
     cs, c = m.cs, m.contour
     t = cs.t
     clock = time.perf_counter()
-    if m.decision.learn and (
-        (m.decision.partial and _near_another(m.decision.box, neighbours))
-        or (dual.decider.cfg.overlap_freezes and _overlaps_another(m.decision.box, neighbours))
-    ):
+    if m.decision.learn and _beside_another(dual, m.decision, neighbours):
         m = dataclasses.replace(m, decision=dataclasses.replace(m.decision, learn=False))
     size, app_size, d, entering = _size(dual, m, neighbours)
     out = _output_box(cs, d, size)
@@ -337,6 +334,16 @@ def _size(
     )
     size, d, entering = _walked_in(dual, m, size, d)
     return size, app_size, d, entering
+
+
+def _beside_another(dual: Dual, d: Decision, neighbours: tuple[BBox, ...]) -> bool:
+    """Whether another target is too close for the models to learn from this decision: a
+    measurement over a collapsed contour within half a box of one (:func:`_near_another`), or
+    any measurement overlapping one (:func:`_overlaps_another`, with
+    ``decider.overlap_freezes``)."""
+    if d.partial and _near_another(d.box, neighbours):
+        return True
+    return dual.decider.cfg.overlap_freezes and _overlaps_another(d.box, neighbours)
 
 
 def _overlaps_another(box: BBox | None, neighbours: tuple[BBox, ...]) -> bool:
