@@ -31,13 +31,6 @@ def test_identities_survive_crossings_and_lookalikes_side_by_side(scene, tmp_pat
     assert m["p20"] >= 0.95, m["targets"]
 
 
-def _box_iou(a, b):
-    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
-    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
-    inter = ix * iy
-    return inter / (a[2] * a[3] + b[2] * b[3] - inter)
-
-
 def test_overlapping_targets_teach_their_models_nothing(tmp_path):
     """Random development seed 58 (two targets that overlap from frame 3 and again at the end).
     Learning through the overlap, each model takes in the other target's pixels: the colour
@@ -58,12 +51,12 @@ def test_overlapping_targets_teach_their_models_nothing(tmp_path):
             by_frame.setdefault(int(r["frame"]), {})[r["id"]] = r
 
         def box(r):
-            return [float(r[c]) for c in ("x_px", "y_px", "w_px", "h_px")]
+            return BBox(*(float(r[c]) for c in ("x_px", "y_px", "w_px", "h_px")))
 
         overlap = [
             f
             for f, pair in by_frame.items()
-            if f > 1 and len(pair) == 2 and _box_iou(box(pair["1"]), box(pair["2"])) >= 0.2
+            if f > 1 and len(pair) == 2 and box(pair["1"]).iou(box(pair["2"])) >= 0.2
         ]
         learned = [
             (f, i)
