@@ -10,6 +10,7 @@ import pyarrow.compute as pc
 import pytest
 
 from pipeline.run import RunOptions, run_track
+from pipeline.types import BBox
 from tests.rrd_helpers import open_store, rows, texts
 
 

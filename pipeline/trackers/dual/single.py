@@ -338,9 +338,9 @@ def _size(
 
 def _beside_another(dual: Dual, d: Decision, neighbours: tuple[BBox, ...]) -> bool:
     """Whether another target is too close for the models to learn from this decision: a
-    measurement over a cut or collapsed contour within half a box of one (:func:`_near_another`), or
-    any measurement overlapping one (:func:`_overlaps_another`, with
-    ``decider.overlap_freezes``)."""
+    measurement over a cut or collapsed contour within half a box of one
+    (:func:`_near_another`), or any measurement overlapping one (:func:`_overlaps_another`,
+    with ``decider.overlap_freezes``)."""
     if d.partial and _near_another(d.box, neighbours):
         return True
     return dual.decider.cfg.overlap_freezes and _overlaps_another(d.box, neighbours)
