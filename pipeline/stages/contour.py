@@ -107,6 +107,19 @@ class ContourConfig(Section):
         The cold starts running that may find nothing before ``retry_empty_frames`` spaces
         them, >= 1; default 3. On the development range, after one to three empty cold starts
         the next one found something on 8-19 % of frames, after more on 2-5 %.
+    warm_part : bool
+        Beyond the paper: where the first frame's contour collapsed to a part inside the given
+        box with contrast (a cyclist's rider without the cold bicycle, a torso without cold
+        legs), the tracker takes that part as what the IR shows of the target: a later contour
+        that collapses to the part's size (its size tests against the part, scaled with the
+        target) is ``part``, and the target is not partly hidden for it (its status stays
+        ``tracking`` and its models learn; the box is measured by the other cues, as after any
+        collapse). Default True; False calls every such frame a partial occlusion unless the
+        colour matches the whole target (``decider.whole_colour_rho``).
+    warm_part_min_fraction : float
+        The smallest share of the given box's area such a part may cover, in (0, 1); default
+        0.08. A smaller part (a warm head) is not told from a target mostly hidden at the
+        start.
     """
 
     section = "contour"
@@ -127,6 +140,8 @@ class ContourConfig(Section):
     start_at: str = param("cues", choices=("cues", "meanshift"))
     retry_empty_frames: int = param(8, ge=1)
     retry_after_empty: int = param(3, ge=1)
+    warm_part: bool = True
+    warm_part_min_fraction: float = param(0.08, gt=0, lt=1)
 
 
 @dataclass(frozen=True)
@@ -181,6 +196,7 @@ class ContourResult:
         False,
         False,
     )  # the selection reaches the frame's border along x / y
+    part: bool = False  # a collapse the size of the target's known warm part (the tracker's)
 
 
 def region(
@@ -343,6 +359,29 @@ def _subpixel_edges(
     return left, top, right, bottom
 
 
+def size_reason(box: BBox, expected: BBox, cfg: ContourConfig) -> ContourReason:
+    """The size tests of a contour's ``box`` against the ``expected`` one: ``collapse`` (under
+    ``min_area_fraction`` of its area), ``too-large`` (over ``max_area_ratio``),
+    ``shape-change`` (a side off by more than ``max_dimension_ratio``), else ``ok``.
+
+    Examples
+    --------
+    >>> cfg = ContourConfig()
+    >>> size_reason(BBox(0, 0, 12, 18), BBox(0, 0, 36, 36), cfg).value
+    'collapse'
+    >>> size_reason(BBox(0, 0, 11, 16), BBox(0, 0, 12, 18), cfg).value
+    'ok'
+    """
+    if box.area < cfg.min_area_fraction * expected.area:
+        return ContourReason.COLLAPSE
+    if box.area > cfg.max_area_ratio * expected.area:
+        return ContourReason.TOO_LARGE
+    r = cfg.max_dimension_ratio
+    if not (1 / r <= box.w / expected.w <= r and 1 / r <= box.h / expected.h <= r):
+        return ContourReason.SHAPE_CHANGE
+    return ContourReason.OK
+
+
 def extract_contour(
     ir: np.ndarray,
     expected: BBox,
@@ -475,16 +514,9 @@ def extract_contour(
     reason = ContourReason.OK
     if touches:
         reason = ContourReason.LEAK
-    elif box.area < cfg.min_area_fraction * expected.area:
-        reason = ContourReason.COLLAPSE
-    elif box.area > cfg.max_area_ratio * expected.area:
-        reason = ContourReason.TOO_LARGE
-    elif not (
-        1 / cfg.max_dimension_ratio <= box.w / expected.w <= cfg.max_dimension_ratio
-        and 1 / cfg.max_dimension_ratio <= box.h / expected.h <= cfg.max_dimension_ratio
-    ):
-        reason = ContourReason.SHAPE_CHANGE
-    elif abs(contrast) < cfg.min_contrast:
+    else:
+        reason = size_reason(box, expected, cfg)
+    if reason == ContourReason.OK and abs(contrast) < cfg.min_contrast:
         reason = ContourReason.LOW_CONTRAST
     return ContourResult(
         reason == ContourReason.OK,

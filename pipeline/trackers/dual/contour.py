@@ -14,6 +14,7 @@ from pipeline.stages.contour import (
     ContourResult,
     LevelSetMemory,
     extract_contour,
+    size_reason,
 )
 from pipeline.stages.levelset import LevelSetConfig
 from pipeline.trackers.dual.state import DualTarget
@@ -39,6 +40,37 @@ class ContourCue:
         """The contour of a target given at ``box`` on its first frame (a cold start)."""
         return extract_contour(ir, box, self.cfg, self.levelset)
 
+    def part(
+        self, box: BBox, c: ContourResult | None, entering: tuple[bool, bool]
+    ) -> tuple[float, float] | None:
+        """The warm part of a target given at ``box`` that its first contour ``c`` shows
+        (``warm_part``): the part's width and height as shares of the box's; None where the
+        contour did not collapse, has too little contrast, reaches out of the box or covers
+        under ``warm_part_min_fraction`` of it, and for a target walking in (its contour is
+        cut, not a part).
+
+        Examples
+        --------
+        >>> from pipeline.stages.contour import ContourConfig, LevelSetMemory
+        >>> from pipeline.stages.levelset import LevelSetConfig
+        >>> cue = ContourCue(ContourConfig(), LevelSetConfig())
+        >>> rider = ContourResult(False, ContourReason.COLLAPSE, BBox(12, 0, 12, 18), (), 50,
+        ...                       20.0, LevelSetMemory.empty())
+        >>> cue.part(BBox(0, 0, 36, 36), rider, (False, False))
+        (0.3333333333333333, 0.5)
+        """
+        cfg = self.cfg
+        if not cfg.warm_part or c is None or c.box is None or any(entering):
+            return None
+        if c.reason != ContourReason.COLLAPSE:
+            return None
+        k = c.box
+        if abs(c.contrast) < cfg.min_contrast or k.area < cfg.warm_part_min_fraction * box.area:
+            return None
+        if k.intersect(box).area < 0.9 * k.area:
+            return None
+        return (k.w / box.w, k.h / box.h)
+
     def start(
         self,
         filter_box: BBox | None,
@@ -63,11 +95,22 @@ class ContourCue:
         cold: bool = False,
     ) -> ContourResult:
         """The contour of ``t`` around ``start`` at its current size, warm-started from its last
-        good level set moved by its displacement (unless ``cold``)."""
-        expected = BBox.from_center(start[0], start[1], t.size[0], t.size[1])
+        good level set moved by its displacement (unless ``cold``). For a target whose IR
+        shows a part of it (:attr:`DualTarget.part`), a contour that collapsed to that part's
+        size (the size tests against the part at the target's current size) is marked
+        ``part``: the target is all there, and its box is not measured from the part."""
+        w, h = t.size
+        expected = BBox.from_center(start[0], start[1], w, h)
         memory = None if cold else t.memory
         shift = (start[0] - t.memory_center[0], start[1] - t.memory_center[1])
-        return extract_contour(ir, expected, self.cfg, self.levelset, memory, shift)
+        c = extract_contour(ir, expected, self.cfg, self.levelset, memory, shift)
+        if t.part is None or c.box is None or c.reason != ContourReason.COLLAPSE:
+            return c
+        fw, fh = t.part
+        part = BBox.from_center(c.box.cx, c.box.cy, fw * w, fh * h)
+        if size_reason(c.box, part, self.cfg) != ContourReason.OK:
+            return c
+        return dataclasses.replace(c, part=True)
 
     def due(self, t: DualTarget, frame: int, confident: bool) -> bool:
         """Whether ``t``'s level set runs at ``frame``: always, unless it has no level set to

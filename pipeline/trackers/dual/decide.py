@@ -158,6 +158,7 @@ class Evidence:
     outside: bool = False  # the prediction has left the frame
     prior_std_px: tuple[float, float] = (0.0, 0.0)  # std. deviation of the predicted centre (x, y)
     contour_checked: bool = True  # the contour cue applies its failure tests (contour.checks)
+    contour_part: bool = False  # the contour collapsed to the target's known warm part
     foreground_share: float = float("nan")  # of the filter's box, against the still background
     speed_px: float = 0.0  # its recent speed over its clean measurements, px per frame
     seen: tuple[float, float] | None = None  # centre of its last clean measurement
@@ -435,9 +436,11 @@ class View:
 
     @property
     def partial(self) -> bool:
-        """The filter measures over a cut or collapsed contour."""
+        """The filter measures over a cut or collapsed contour (not one collapsed to the
+        target's known warm part)."""
         ev = self.ev
-        return self.cut or (ev.contour_reason == ContourReason.COLLAPSE and ev.contour_checked)
+        collapsed = ev.contour_reason == ContourReason.COLLAPSE and not ev.contour_part
+        return self.cut or (collapsed and ev.contour_checked)
 
     @property
     def hidden_part(self) -> bool:

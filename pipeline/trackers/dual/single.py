@@ -205,6 +205,7 @@ def evidence(
         outside=left_frame(prior.box, frames.shape),
         prior_std_px=(math.sqrt(float(prior.P[0, 0])), math.sqrt(float(prior.P[1, 1]))),
         contour_checked=dual.contour.cfg.checks,
+        contour_part=c is not None and c.part,
         speed_px=t.speed,
         **_seen(t, frames.index),
         **_filter_evidence(cue),

@@ -47,7 +47,9 @@ class DualTarget:
     (kept while its history is too short to tell: after it was found again); ``partial``
     whether its last measurement was over a cut or collapsed contour; ``empty_starts`` how
     many cold-started level sets running found nothing, the last at frame ``empty_start_frame``
-    (``contour.retry_empty_frames``).
+    (``contour.retry_empty_frames``); ``part`` the size of the warm part of it that its IR
+    contour shows, as shares of its box's width and height (``contour.warm_part``), None where
+    the contour is the whole target.
     """
 
     id: int
@@ -70,6 +72,7 @@ class DualTarget:
     partial: bool = False
     empty_starts: int = 0
     empty_start_frame: int = -1
+    part: tuple[float, float] | None = None
 
     @property
     def held(self) -> bool:

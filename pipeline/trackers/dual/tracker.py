@@ -227,6 +227,7 @@ class Dual:
             appearance=model,
             app_size=(b.w, b.h),
             entering=entering,
+            part=self.contour.part(b, c, entering),
         )
 
     # ------------------------------------------------------------------------- every frame
