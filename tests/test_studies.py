@@ -270,6 +270,22 @@ def test_failure_onsets_find_the_first_sustained_run():
     assert (o.first_visibility, o.failed) == (0.4, 5)
 
 
+def test_failure_modes_splits_size_failures_by_box_and_depth_motion():
+    """A ``size`` failure is counted by whether the box is smaller or larger than the truth's
+    and by the target's depth motion; the line under the table gives the shares."""
+    from collections import Counter
+
+    fm = _tool("failure_modes")
+    assert fm.size_key((0, 0, 10, 20), (0, 0, 15, 30), "approach") == "size:small:approach"
+    assert fm.size_key((0, 0, 20, 40), (0, 0, 15, 30), "recede") == "size:large:recede"
+    c = Counter({"size": 5, "size:small:approach": 3, "size:large:recede": 1})
+    c["size:large:constant"] += 1
+    line = fm.size_split(c)
+    assert "too small 60 % (3 of 3 on approaching" in line
+    assert "too large 40 % (1 of 2 on receding" in line
+    assert fm.size_split(Counter()) == "size failures: none"
+
+
 def test_rounding_spread_moves_one_parameter_by_its_last_bits(tmp_path):
     from pipeline.synthetic import synthesize
 

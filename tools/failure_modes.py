@@ -21,7 +21,9 @@ with the truth is put in the first class that applies:
 ``coasting``
     an occluded status (the tracker knows it has no measurement) while the target is in view;
 ``size``
-    the centre is within 20 px of the truth's, but the box's size is wrong;
+    the centre is within 20 px of the truth's, but the box's size is wrong (split below the
+    table by whether the box is smaller or larger than the truth's, and by the target's depth
+    motion: ``approach``, ``recede`` or ``constant``, from ``scene.json``);
 ``drift``
     anything else: the tracker measures the target somewhere it is not.
 
@@ -104,6 +106,10 @@ def scene_failures(
         for r in csv.DictReader(fh):
             box = tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
             out[(int(r["frame"]), int(r["id"]))] = (r["status"], box, r.get("decision", ""))
+    depth = {
+        int(p["id"]): str(p.get("scale", "constant"))
+        for p in meta.get("params", {}).get("targets", [])
+    }
     counts: Counter = Counter()
     total = 0
     # per target: (frame, class or None when on the target or hidden, decision)
@@ -122,6 +128,8 @@ def scene_failures(
             cls = _failure(status, box, truth, f, tid, others)
             if cls is not None:
                 counts[cls] += 1
+            if cls == "size":
+                counts[size_key(box, truth, depth.get(tid, "constant"))] += 1
             seq.setdefault(tid, []).append((t, None if cls == "hidden" else cls, decision))
     return counts, total, _onsets(scene_dir.name, seq, first_vis, run)
 
@@ -143,6 +151,42 @@ def _failure(status, box, truth, f, tid, others) -> str | None:
     if centre_distance(box, truth) <= 20:
         return "size"
     return "drift"
+
+
+def size_key(box: Box, truth: Box, depth: str) -> str:
+    """The key a ``size`` failure is counted under: ``size:<small|large>:<depth>``, by the
+    output box's area against the truth's and the target's depth motion.
+
+    Examples
+    --------
+    >>> size_key((0, 0, 10, 20), (0, 0, 15, 30), "approach")
+    'size:small:approach'
+    """
+    return f"size:{'small' if box[2] * box[3] < truth[2] * truth[3] else 'large'}:{depth}"
+
+
+def size_split(counts: Counter) -> str:
+    """One line saying how the ``size`` failures of ``counts`` split: the share with a box
+    smaller than the truth's and, of those, the share on approaching targets; the share with a
+    larger box and, of those, on receding targets.
+
+    Examples
+    --------
+    >>> c = Counter({"size": 4, "size:small:approach": 2, "size:small:constant": 1,
+    ...              "size:large:recede": 1})
+    >>> size_split(c)
+    'size failures (4): box too small 75 % (2 of 3 on approaching targets), too large 25 % (1 of 1 on receding targets)'
+    """  # noqa: E501
+    n = counts["size"]
+    if n == 0:
+        return "size failures: none"
+    small = sum(v for k, v in counts.items() if k.startswith("size:small:"))
+    large = sum(v for k, v in counts.items() if k.startswith("size:large:"))
+    return (
+        f"size failures ({n}): box too small {100 * small / n:.0f} % "
+        f"({counts['size:small:approach']} of {small} on approaching targets), too large "
+        f"{100 * large / n:.0f} % ({counts['size:large:recede']} of {large} on receding targets)"
+    )
 
 
 def _onsets(
@@ -187,17 +231,18 @@ def main(argv: list[str] | None = None) -> int:
         onsets += o
         grand.update(c)
         n_all += n
-        rows.append((sum(c.values()) / max(n, 1), scene_dir.name, c, n))
+        rows.append((sum(c[k] for k in CLASSES) / max(n, 1), scene_dir.name, c, n))
     rows.sort(reverse=True)
     print("| scene | failed | " + " | ".join(CLASSES) + " |")
     print("|---|---|" + "---|" * len(CLASSES))
     for share, name, c, n in rows[: a.worst]:
         print(f"| {name} | {share:.3f} | " + " | ".join(f"{c[k] / n:.3f}" for k in CLASSES) + " |")
     print(
-        f"| all ({len(rows)} scenes) | {sum(grand.values()) / max(n_all, 1):.3f} | "
+        f"| all ({len(rows)} scenes) | {sum(grand[k] for k in CLASSES) / max(n_all, 1):.3f} | "
         + " | ".join(f"{grand[k] / max(n_all, 1):.3f}" for k in CLASSES)
         + " |"
     )
+    print("\n" + size_split(grand))
     if a.onsets > 0:
         _print_onsets(onsets, a.onsets, a.run)
     return 0
