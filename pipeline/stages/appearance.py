@@ -100,7 +100,17 @@ class AppearanceConfig(Section):
         caller gives and saves about 40 % of the filter's cost.
     scale_channels : str
         Where both frames exist, the scale filter's gradients come from ``infrared``,
-        ``visible`` or ``both``; default ``infrared`` (``both`` doubles its cost).
+        ``visible``, ``both`` or ``adaptive``; default ``adaptive``. ``adaptive`` starts on
+        the infrared and moves the scale filter to the frame that shows the target better:
+        where the translation filter's visible PSR has run at ``scale_switch_ratio`` times its
+        IR PSR (a running geometric mean over the learning frames) the scale filter is learned
+        afresh on the visible frame, and back on the infrared once the IR's PSR has caught up.
+        It reads one frame's gradients, as ``infrared`` does; ``both`` reads the two and
+        doubles the scale filter's cost.
+    scale_switch_ratio : float
+        With ``adaptive``, the ratio of the visible to the IR PSR at which the scale filter
+        moves to the visible frame, > 1; default 2. Increasing it moves fewer targets (at 3
+        almost none on the development range).
     scale_count : int
         Scales of the scale filter (odd), in [3, 33]; default 13. Increasing it finds large
         size changes per frame and costs one small crop and feature pass per scale.
@@ -156,7 +166,8 @@ class AppearanceConfig(Section):
     visible_gradients: bool = True
     infrared: bool = True
     scale_filter: bool = True
-    scale_channels: str = param("infrared", choices=("infrared", "visible", "both"))
+    scale_channels: str = param("adaptive", choices=("infrared", "visible", "both", "adaptive"))
+    scale_switch_ratio: float = param(2.0, gt=1)
     scale_count: int = param(13, ge=3, le=33, odd=True)
     scale_step: float = param(1.03, gt=1, le=1.2)
     scale_template_px: int = param(32, ge=16, le=64)
@@ -471,6 +482,8 @@ class AppearanceModel:
     scale_template: tuple[int, int]  # (w, h) px of the scale filter's template
     gains: np.ndarray  # (C,) per-channel feature gains fixed at the first frame
     frames: int = 1
+    scale_source: str = "infrared"  # the frame(s) the scale filter reads where both exist
+    support_log_ratio: float = 0.0  # running mean of log(visible PSR / IR PSR), ``adaptive``
 
 
 @dataclass(frozen=True)
@@ -730,16 +743,18 @@ def _scale_samples(
     size: tuple[float, float],
     cfg: AppearanceConfig,
     template: tuple[int, int],
+    source: str = "infrared",
 ) -> np.ndarray:
     """``(d, S)`` features of the target at every scale, windowed over the scales: the gradient
-    histogram of the infrared frame (the visible luminance without one) on a ``template`` (w, h) px
-    resampling, one compiled pass over all scales."""
+    histogram of the ``source`` frame (``infrared``, ``visible`` or ``both``; the one there is
+    where the other is missing) on a ``template`` (w, h) px resampling, one compiled pass over all
+    scales."""
     tw, th = template
     factors = _scale_factors(cfg.scale_count, cfg.scale_step)
     sources = []
-    if vis is not None and (ir is None or cfg.scale_channels in ("visible", "both")):
+    if vis is not None and (ir is None or source in ("visible", "both")):
         sources.append(cv2.cvtColor(vis, cv2.COLOR_BGR2GRAY))
-    if ir is not None and (vis is None or cfg.scale_channels in ("infrared", "both")):
+    if ir is not None and (vis is None or source in ("infrared", "both")):
         sources.append(ir)
     big = (size[0] * factors[-1], size[1] * factors[-1])
     Hf, Wf = sources[0].shape[:2]
@@ -874,10 +889,11 @@ def train(
     )
     num, den = _filter_terms(Y, F)
     st = like.scale_template if like is not None else scale_template((box.w, box.h), cfg)
+    source = like.scale_source if like is not None else _first_scale_source(cfg)
     if cfg.scale_filter and scale:
         S = reused_scale_samples(reuse, box, st, cfg) if reuse is not None else None
         if S is None:
-            S = _scale_samples(vis, ir, box.center, (box.w, box.h), cfg, st)
+            S = _scale_samples(vis, ir, box.center, (box.w, box.h), cfg, st, source)
         s_num, s_den = _scale_terms(_scale_label_fft(cfg.scale_count), _rfft_rows(S))
     else:
         s_num, s_den = (
@@ -894,6 +910,7 @@ def train(
         (vis is not None, ir is not None),
         st,
         gains,
+        scale_source=source,
     )
 
 
@@ -1160,7 +1177,7 @@ def rescale(
     if not cfg.scale_filter:
         return d
     sz = d.size
-    S = _scale_samples(vis, ir, d.center, sz, cfg, model.scale_template)
+    S = _scale_samples(vis, ir, d.center, sz, cfg, model.scale_template, model.scale_source)
     rs = _irfft(
         _scale_response(
             model.s_num, _rfft_rows(S), model.s_den, model.s_den.dtype.type(cfg.lambda_reg)
@@ -1204,6 +1221,45 @@ def _scale_peak(rs):  # pragma: no cover (compiled)
     return k, 0.0
 
 
+def _first_scale_source(cfg: AppearanceConfig) -> str:
+    """The frame(s) a new scale filter reads: ``scale_channels``, the infrared for
+    ``adaptive``."""
+    return "infrared" if cfg.scale_channels == "adaptive" else cfg.scale_channels
+
+
+def scale_source_after(
+    model: AppearanceModel, support: tuple[float, float], cfg: AppearanceConfig
+) -> tuple[str, float]:
+    """An ``adaptive`` scale filter's frame after a frame whose detection had the (visible, IR)
+    PSR ``support``, and the running mean of ``log(visible / IR)`` it is chosen by (each PSR
+    floored at 1; a weight of 0.1 per frame, about the last ten learning frames): the visible
+    frame from ``log(scale_switch_ratio)`` up, the infrared again from 0 down (the IR shows the
+    target as well), else unchanged. A frame without both PSRs changes nothing.
+
+    Examples
+    --------
+    >>> cfg = AppearanceConfig(scale_channels="adaptive")
+    >>> m = AppearanceModel(*(None,) * 4, None, None, (True, True), (8, 8), None)
+    >>> for _ in range(10):  # the IR shows the target at a third of the visible's PSR
+    ...     src, r = scale_source_after(m, (30.0, 10.0), cfg)
+    ...     m = replace(m, scale_source=src, support_log_ratio=r)
+    >>> m.scale_source, round(m.support_log_ratio, 3)
+    ('visible', 0.716)
+    >>> scale_source_after(m, (10.0, 40.0), cfg)[0]  # one frame of a clear IR: not yet
+    'visible'
+    """
+    v, i = support
+    if not (math.isfinite(v) and math.isfinite(i)):
+        return model.scale_source, model.support_log_ratio
+    ratio = 0.9 * model.support_log_ratio + 0.1 * math.log(max(v, 1.0) / max(i, 1.0))
+    source = model.scale_source
+    if ratio >= math.log(cfg.scale_switch_ratio):
+        source = "visible"
+    elif ratio <= 0.0:
+        source = "infrared"
+    return source, ratio
+
+
 def update(
     model: AppearanceModel,
     vis: np.ndarray | None,
@@ -1214,13 +1270,23 @@ def update(
     scale_rate: float | None = None,
     reuse: ScaleSamples | None = None,
     reuse_window: WindowSamples | None = None,
+    support: tuple[float, float] | None = None,
 ) -> AppearanceModel:
     """The model with the target in ``box`` blended in (``rate`` defaults to ``cfg.learning_rate``;
-    0 keeps it); ``reuse`` and ``reuse_window`` as :func:`train`'s."""
+    0 keeps it); ``reuse`` and ``reuse_window`` as :func:`train`'s. ``support``: this frame's
+    (visible, IR) PSR at the detection, which moves an ``adaptive`` scale filter
+    (:func:`scale_source_after`); where it moves, the scale filter is learned afresh."""
     r = cfg.learning_rate if rate is None else rate
     rs = cfg.scale_learning_rate if scale_rate is None else scale_rate
     if r <= 0 and rs <= 0:
         return model
+    moved = False
+    if cfg.scale_channels == "adaptive" and support is not None and all(model.channels):
+        source, ratio = scale_source_after(model, support, cfg)
+        moved = source != model.scale_source
+        model = replace(model, scale_source=source, support_log_ratio=ratio)
+        if moved:
+            reuse, rs = None, 1.0  # the other frame's samples: learned afresh, not blended
     new = train(
         vis, ir, box, cfg, like=model, scale=rs > 0, reuse=reuse, reuse_window=reuse_window
     )

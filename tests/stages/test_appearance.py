@@ -3,6 +3,8 @@ channels, update."""
 
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 import pytest
@@ -291,3 +293,35 @@ def test_a_window_moved_by_whole_cells_is_the_features_rolled_whatever_their_par
     F = A.reused_window(r, A.Window(BBox(4.0, 4.0, 4.0 * w, 4.0 * h), r.template), cfg)
     moved = A._irfft2(F.astype(np.complex128), (h, w))
     np.testing.assert_allclose(moved, np.roll(f, (-1, -1), axis=(0, 1)), atol=1e-5)
+
+
+def _sensor_noise(rng: np.random.Generator) -> np.ndarray:
+    """A new flat IR frame: grey 100 and sensor noise of 2 grey levels."""
+    return (100 + rng.normal(0, 2, (H, W))).clip(0, 255).astype(np.uint8)
+
+
+def test_an_adaptive_scale_filter_moves_to_the_frame_that_shows_a_growing_target(textured):
+    """A target textured in the visible frame and flat (noise only) in the IR grows 1 % a frame
+    for 40 frames. On the IR's gradients the scale filter has nothing to read and its size
+    stays within 10 % of the first (planted growth 1.49); ``adaptive`` moves the scale filter to
+    the visible frame once the visible PSR has run at twice the IR's, and the size follows the
+    growth within 5 % (1.46)."""
+    vis, _ = textured
+    first = BBox.from_center(*CENTRE, 30, 45)
+    grown = {}
+    for mode in ("infrared", "adaptive"):
+        rng = np.random.default_rng(1)
+        flat = functools.partial(_sensor_noise, rng)  # the IR: noise, nothing of the target
+        cfg = A.AppearanceConfig(scale_channels=mode)
+        model = A.train(vis, flat(), first, cfg)
+        center, size = CENTRE, (first.w, first.h)
+        for k in range(1, 41):
+            v, ir = warp(vis, 0.0, 0.0, 1.01**k), flat()
+            d = A.detect(model, v, ir, center, cfg, size=size)
+            center, size = d.center, d.size
+            box = BBox.from_center(*center, *size)
+            model = A.update(model, v, ir, box, cfg, support=d.support)
+        grown[mode] = (size[0] / first.w, model.scale_source)
+    assert abs(grown["infrared"][0] - 1.0) <= 0.1 and grown["infrared"][1] == "infrared", grown
+    assert grown["adaptive"][1] == "visible", grown
+    assert grown["adaptive"][0] == pytest.approx(1.01**40, rel=0.05), grown

@@ -103,12 +103,14 @@ class AppearanceCue:
         frame: int,
         reuse: app.ScaleSamples | None = None,
         reuse_window: app.WindowSamples | None = None,
+        support: tuple[float, float] | None = None,
     ) -> app.AppearanceModel | None:
         """The filter blended with this frame when the decision lets the models learn and the
         colour's selective update did not freeze for a change of appearance (eq. 8-9 gates the
         filter's learning rate); on every ``update_every_frames``-th frame only, at the rate
         compounded over them. ``reuse``, ``reuse_window``: this frame's scale samples and search
-        window (``scale_reuse_px``, ``window_reuse_px``)."""
+        window (``scale_reuse_px``, ``window_reuse_px``); ``support`` its detection's (visible,
+        IR) PSR (``scale_channels = "adaptive"``)."""
         acfg = self.cfg
         if (
             model is None
@@ -135,4 +137,5 @@ class AppearanceCue:
             scale_rate=scale_rate,
             reuse=reuse,
             reuse_window=reuse_window,
+            support=support,
         )

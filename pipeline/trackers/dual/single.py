@@ -434,8 +434,9 @@ def _learn_filter(
     seen = m.cs.informative
     reuse = m.cue.scale_samples if m.cue is not None else None
     window = m.cue.window_samples if m.cue is not None else None
+    support = m.cue.support if m.cue is not None else None
     learned = dual.appearance.learn(
-        model, frames, mode, at, d, colour, seen, frames.index, reuse, window
+        model, frames, mode, at, d, colour, seen, frames.index, reuse, window, support
     )
     return learned, app_size
 
