@@ -181,6 +181,40 @@ def test_full_disk_leaves_whole_rows_and_a_true_summary(tmp_path, scene):
         subprocess.run(["umount", str(mnt)], capture_output=True)
 
 
+def test_closing_a_recording_whose_writer_is_stuck_does_not_wait_for_it(monkeypatch):
+    """On a full disk the SDK's file writer can stay blocked, and its ``disconnect`` with it (seen
+    in CI: a run that hit the full disk waited in ``disconnect`` past the test's 120 s). The sink
+    gives it a bounded wait, then takes the SDK's exit handler off so that the exit does not
+    wait for the same writer; a disconnect that returns is simply waited for."""
+    import threading
+
+    import rerun as rr
+
+    from pipeline.sinks import rerun_sink
+
+    release = threading.Event()
+
+    class Stuck:
+        def disconnect(self):
+            release.wait(30)
+
+    class Fine:
+        disconnected = False
+
+        def disconnect(self):
+            self.disconnected = True
+
+    off = []
+    monkeypatch.setattr(rr, "unregister_shutdown", lambda: off.append(True))
+    t0 = time.monotonic()
+    assert rerun_sink._disconnect_within(Stuck(), 0.2) is False
+    assert time.monotonic() - t0 < 5 and off == [True]
+    release.set()
+    fine = Fine()
+    assert rerun_sink._disconnect_within(fine, 5.0) is True
+    assert fine.disconnected and off == [True]
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_sigterm_and_ctrl_c_mid_run_close_every_output(tmp_path, long_scene, sig):
     run = tmp_path / "run"

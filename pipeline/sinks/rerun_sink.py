@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import uuid
 from collections import defaultdict
 from pathlib import Path
@@ -530,7 +531,7 @@ class RerunSink:
         except RuntimeError:
             pass
         finally:
-            self.rec.disconnect()
+            _disconnect_within(self.rec, DISCONNECT_TIMEOUT_S)
         try:
             os.truncate(self.path, self._good_size)
         except OSError:
@@ -543,6 +544,31 @@ class RerunSink:
         self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
     ) -> None:
         self.close()
+
+
+DISCONNECT_TIMEOUT_S = 10.0
+"""How long closing a recording whose file writer failed may wait for the SDK, s."""
+
+
+def _disconnect_within(rec: rr.RecordingStream, timeout_s: float) -> bool:
+    """Disconnect ``rec`` on a thread of its own, waiting at most ``timeout_s``: True when it
+    returned. The SDK's file writer can stay blocked on a full disk, and its ``disconnect`` with
+    it (in compiled code, where no Python timeout reaches); then the recording is left to the
+    process's exit, and the SDK's exit handler, which would wait for the same writer, is taken
+    off (:func:`rerun.unregister_shutdown`)."""
+    done = threading.Event()
+
+    def run() -> None:
+        try:
+            rec.disconnect()
+        finally:
+            done.set()
+
+    threading.Thread(target=run, name="rerun-disconnect", daemon=True).start()
+    if done.wait(timeout_s):
+        return True
+    rr.unregister_shutdown()
+    return False
 
 
 def _drawn_thin(t) -> bool:
