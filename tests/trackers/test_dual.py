@@ -95,6 +95,13 @@ def _p20(d, out, sets, target=None):
     return m["targets"][target]["p20"] if target else m["p20"]
 
 
+def _targets_table(d, out, sets) -> tuple[list[dict], dict]:
+    """The dual tracker's ``targets.csv`` rows and summary metrics on ``d`` with ``sets``."""
+    res = run_track(d, RunOptions(tracker="dual", out_dir=out, rrd=False, plots=False, sets=sets))
+    rows = list(csv.DictReader((res.out_dir / "targets.csv").read_text().splitlines()))
+    return rows, res.summary["metrics"]
+
+
 def test_a_target_that_turns_while_hidden_is_searched_for_where_it_was_seen(tmp_path):
     """Random development seed 1 (two targets), frame 28: target 1 turns back at 7 px per frame as
     it is lost; its coast runs on the other way. On the prediction's line alone (the turn parts
@@ -197,19 +204,10 @@ def test_a_cold_cyclist_whose_contour_collapses_is_not_called_occluded(tmp_path)
     d = synthesize_random(tmp_path / "s", 39, targets=1, progress=False)
     tables, auc = {}, {}
     for whole in ("0.9", "1"):
-        res = run_track(
-            d,
-            RunOptions(
-                tracker="dual",
-                out_dir=tmp_path / whole,
-                rrd=False,
-                plots=False,
-                sets=[f"dual.decider.whole_colour_rho={whole}", "dual.contour.warm_part=false"],
-            ),
-        )
-        rows = list(csv.DictReader((res.out_dir / "targets.csv").read_text().splitlines()))
+        sets = [f"dual.decider.whole_colour_rho={whole}", "dual.contour.warm_part=false"]
+        rows, metrics = _targets_table(d, tmp_path / whole, sets)
         tables[whole] = [r for r in rows if 2 <= int(r["frame"]) <= 10]
-        auc[whole] = res.summary["metrics"]["auc"]
+        auc[whole] = metrics["auc"]
     assert all("contour-collapse" in r["decision"] for r in tables["0.9"])
     assert all(r["status"] == "tracking" for r in tables["0.9"])
     assert all(r["model_update"].startswith("updated") for r in tables["0.9"])
@@ -231,19 +229,9 @@ def test_a_cyclist_whose_ir_shows_its_rider_is_not_called_occluded(tmp_path):
     d = synthesize_random(tmp_path / "s", 18, targets=1, progress=False)
     status, metrics = {}, {}
     for part in ("true", "false"):
-        res = run_track(
-            d,
-            RunOptions(
-                tracker="dual",
-                out_dir=tmp_path / part,
-                rrd=False,
-                plots=False,
-                sets=[f"dual.contour.warm_part={part}"],
-            ),
-        )
-        rows = list(csv.DictReader((res.out_dir / "targets.csv").read_text().splitlines()))
+        sets = [f"dual.contour.warm_part={part}"]
+        rows, metrics[part] = _targets_table(d, tmp_path / part, sets)
         status[part] = [r["status"] for r in rows if 2 <= int(r["frame"]) <= 100]
-        metrics[part] = res.summary["metrics"]
     assert status["true"].count("tracking") >= 85, status["true"]
     assert status["false"].count("occluded-partial") >= 85, status["false"]
     assert metrics["true"]["p20"] >= 0.95, metrics
