@@ -207,11 +207,11 @@ def test_closing_a_recording_whose_writer_is_stuck_does_not_wait_for_it(monkeypa
     off = []
     monkeypatch.setattr(rr, "unregister_shutdown", lambda: off.append(True))
     t0 = time.monotonic()
-    assert rerun_sink._disconnect_within(Stuck(), 0.2) is False
+    assert rerun_sink.disconnect_within(Stuck(), 0.2) is False
     assert time.monotonic() - t0 < 5 and off == [True]
     release.set()
     fine = Fine()
-    assert rerun_sink._disconnect_within(fine, 5.0) is True
+    assert rerun_sink.disconnect_within(fine, 5.0) is True
     assert fine.disconnected and off == [True]
 
 

@@ -197,10 +197,13 @@ class DetectionRecording:
             raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
 
     def close(self) -> None:
+        """Flush and close the file; a writer stuck on a full disk is waited for a bounded
+        time (:func:`pipeline.sinks.rerun_sink.disconnect_within`)."""
+        from pipeline.sinks.rerun_sink import DISCONNECT_TIMEOUT_S, disconnect_within
+
         try:
             self.rec.flush(timeout_sec=10.0)
         except RuntimeError as exc:
             raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
         finally:
-            self.rec.disconnect()
-        self.rec.disconnect()
+            disconnect_within(self.rec, DISCONNECT_TIMEOUT_S)

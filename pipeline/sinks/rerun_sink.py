@@ -215,7 +215,7 @@ class RerunSink:
             self.rec.flush(timeout_sec=10.0)
             self._good_size = path.stat().st_size  # bytes of the file at its last checkpoint
         except (RuntimeError, OSError) as exc:
-            self.rec.disconnect()
+            disconnect_within(self.rec, DISCONNECT_TIMEOUT_S)
             path.unlink(missing_ok=True)
             raise OutputError(f"cannot write {path}: {exc} (is the disk full?)") from None
 
@@ -515,7 +515,7 @@ class RerunSink:
                 try:
                     self.rec.flush(timeout_sec=10.0)
                 finally:
-                    self.rec.disconnect()
+                    disconnect_within(self.rec, DISCONNECT_TIMEOUT_S)
         except RuntimeError as exc:
             raise OutputError(f"cannot write {self.path}: {exc} (is the disk full?)") from None
 
@@ -531,7 +531,7 @@ class RerunSink:
         except RuntimeError:
             pass
         finally:
-            _disconnect_within(self.rec, DISCONNECT_TIMEOUT_S)
+            disconnect_within(self.rec, DISCONNECT_TIMEOUT_S)
         try:
             os.truncate(self.path, self._good_size)
         except OSError:
@@ -547,10 +547,10 @@ class RerunSink:
 
 
 DISCONNECT_TIMEOUT_S = 10.0
-"""How long closing a recording whose file writer failed may wait for the SDK, s."""
+"""How long closing a recording may wait for the SDK's file writer (after its flush), s."""
 
 
-def _disconnect_within(rec: rr.RecordingStream, timeout_s: float) -> bool:
+def disconnect_within(rec: rr.RecordingStream, timeout_s: float) -> bool:
     """Disconnect ``rec`` on a thread of its own, waiting at most ``timeout_s``: True when it
     returned. The SDK's file writer can stay blocked on a full disk, and its ``disconnect`` with
     it (in compiled code, where no Python timeout reaches); then the recording is left to the

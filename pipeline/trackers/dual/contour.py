@@ -51,8 +51,6 @@ class ContourCue:
 
         Examples
         --------
-        >>> from pipeline.stages.contour import ContourConfig, LevelSetMemory
-        >>> from pipeline.stages.levelset import LevelSetConfig
         >>> cue = ContourCue(ContourConfig(), LevelSetConfig())
         >>> rider = ContourResult(False, ContourReason.COLLAPSE, BBox(12, 0, 12, 18), (), 50,
         ...                       20.0, LevelSetMemory.empty())
