@@ -286,6 +286,25 @@ def test_failure_modes_splits_size_failures_by_box_and_depth_motion():
     assert fm.size_split(Counter()) == "size failures: none"
 
 
+def test_failure_modes_splits_coasting_failures_by_window_and_rule():
+    """A ``coasting`` failure is counted by whether the truth's centre lies inside the filter's
+    search window (2.5 times the coasting box per axis) and by the coast's rule; the line under
+    the table gives the shares."""
+    from collections import Counter
+
+    fm = _tool("failure_modes")
+    box = (100.0, 100.0, 10.0, 20.0)  # centre (105, 110); the window reaches 12.5 x 25 px out
+    assert fm.coast_key(box, (112.0, 124.0, 10.0, 20.0), "coast:x") == "coasting:in:x"
+    assert fm.coast_key(box, (113.0, 100.0, 10.0, 20.0), "coast:x") == "coasting:off:x"
+    assert fm.coast_key(box, (100.0, 126.0, 10.0, 20.0), "coast:x") == "coasting:off:x"
+    c = Counter({"coasting": 4, "coasting:in:partial-evidence": 1})
+    c.update({"coasting:off:filter-on-background": 1, "coasting:off:partial-evidence": 2})
+    line = fm.coast_split(c)
+    assert "window 25 % (partial-evidence 1)" in line
+    assert "outside 75 % (partial-evidence 2, filter-on-background 1)" in line
+    assert fm.coast_split(Counter()) == "coasting failures: none"
+
+
 def test_rounding_spread_moves_one_parameter_by_its_last_bits(tmp_path):
     from pipeline.synthetic import synthesize
 

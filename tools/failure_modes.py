@@ -19,7 +19,11 @@ with the truth is put in the first class that applies:
 ``lost``
     no output box (status ``lost``) while the target is in view;
 ``coasting``
-    an occluded status (the tracker knows it has no measurement) while the target is in view;
+    an occluded status (the tracker knows it has no measurement) while the target is in view
+    (split below the table by whether the truth's centre lies inside the filter's search window
+    around the coasting box, ``1 + padding`` = 2.5 times its size: the target is where the
+    filter looks and is not recognised, or the prediction has left it; and by the decision's rule:
+    a coast's, or that of a measurement reported occluded, such as a collapsed contour's);
 ``size``
     the centre is within 20 px of the truth's, but the box's size is wrong (split below the
     table by whether the box is smaller or larger than the truth's, and by the target's depth
@@ -130,6 +134,8 @@ def scene_failures(
                 counts[cls] += 1
             if cls == "size":
                 counts[size_key(box, truth, depth.get(tid, "constant"))] += 1
+            if cls == "coasting":
+                counts[coast_key(box, truth, decision)] += 1
             seq.setdefault(tid, []).append((t, None if cls == "hidden" else cls, decision))
     return counts, total, _onsets(scene_dir.name, seq, first_vis, run)
 
@@ -189,6 +195,55 @@ def size_split(counts: Counter) -> str:
     )
 
 
+def coast_key(box: Box, truth: Box, decision: str, window: float = 2.5) -> str:
+    """The key a ``coasting`` failure is counted under: ``coasting:<in|off>:<rule>``, by whether
+    the truth's centre lies inside the search window (``window`` times the box per axis: the
+    filter's ``1 + padding``) centred on the coasting box, and the decision's rule (its part after
+    the case: ``coast:partial-evidence``, or ``appearance:appearance-contour-collapse`` for a
+    measurement reported occluded).
+
+    Examples
+    --------
+    >>> coast_key((0, 0, 10, 20), (8, 5, 10, 20), "coast:partial-evidence")
+    'coasting:in:partial-evidence'
+    >>> coast_key((0, 0, 10, 20), (20, 0, 10, 20), "coast:filter-on-background")
+    'coasting:off:filter-on-background'
+    """
+    dx = abs(box[0] + box[2] / 2 - truth[0] - truth[2] / 2)
+    dy = abs(box[1] + box[3] / 2 - truth[1] - truth[3] / 2)
+    inside = dx <= window * box[2] / 2 and dy <= window * box[3] / 2
+    rule = decision.partition(":")[2] or "unknown"
+    return f"coasting:{'in' if inside else 'off'}:{rule}"
+
+
+def coast_split(counts: Counter) -> str:
+    """One line saying how the ``coasting`` failures of ``counts`` split: the share whose truth
+    lies inside the filter's window around the coast, and the rules of each part, most
+    frequent first.
+
+    Examples
+    --------
+    >>> c = Counter({"coasting": 4, "coasting:in:partial-evidence": 1,
+    ...              "coasting:off:partial-evidence": 2, "coasting:off:filter-on-background": 1})
+    >>> print(coast_split(c))
+    coasting failures (4): truth inside the filter's window 25 % (partial-evidence 1), outside 75 % (partial-evidence 2, filter-on-background 1)
+    """  # noqa: E501
+    n = counts["coasting"]
+    if n == 0:
+        return "coasting failures: none"
+
+    def part(where: str) -> tuple[int, str]:
+        head = f"coasting:{where}:"
+        rules = Counter({k[len(head) :]: v for k, v in counts.items() if k.startswith(head)})
+        return sum(rules.values()), ", ".join(f"{r} {v}" for r, v in rules.most_common())
+
+    (k_in, r_in), (k_off, r_off) = part("in"), part("off")
+    return (
+        f"coasting failures ({n}): truth inside the filter's window {100 * k_in / n:.0f} % "
+        f"({r_in or 'none'}), outside {100 * k_off / n:.0f} % ({r_off or 'none'})"
+    )
+
+
 def _onsets(
     scene: str,
     seq: dict[int, list[tuple[int, str | None, str]]],
@@ -243,6 +298,7 @@ def main(argv: list[str] | None = None) -> int:
         + " |"
     )
     print("\n" + size_split(grand))
+    print(coast_split(grand))
     if a.onsets > 0:
         _print_onsets(onsets, a.onsets, a.run)
     return 0
