@@ -126,6 +126,13 @@ class RedetectConfig(Section):
         that a target that turned or stopped while hidden is found where it was; default True.
     global_after_frames : int
         Missing frames after which the whole frame is searched, >= 1; default 12.
+    first_model : bool
+        The search also tries, at each place, the target's filter as trained on its first
+        frame, and takes the better peak: a filter that learned something else before the
+        target was lost (a passer-by, an occluder's edge, a partly hidden view) does not also
+        stop it from being found again; default True. It doubles the search's filter
+        evaluations (a missing target's only); a target whose look has changed since its first
+        frame is found by its current filter as before.
     every_frames : int
         A missing target is searched for every this many frames, >= 1; default 2.
     candidates : int
@@ -147,6 +154,7 @@ class RedetectConfig(Section):
     radius_px_per_frame: float = param(3.0, ge=0)
     last_seen: bool = True
     global_after_frames: int = param(12, ge=1)
+    first_model: bool = True
     every_frames: int = param(2, ge=1)
     candidates: int = param(12, ge=1)
     detection: DetectionConfig = field(

@@ -216,6 +216,75 @@ def test_a_cold_cyclist_whose_contour_collapses_is_not_called_occluded(tmp_path)
     assert auc["0.9"] >= auc["1"] + 0.02, auc
 
 
+def test_a_missing_target_is_searched_for_with_its_first_filter_too():
+    """A target's filter trained on its first frame (a patch of texture on a textured scene) and
+    a filter that has since learned something else there (another texture): searched for at the
+    place where the first look now is, far from its prediction, the missing target is found
+    there with ``redetect.first_model`` (a confident peak within 1 px of its centre) and not by
+    the current filter alone (no confident peak: nothing it learned is in the frame)."""
+    import dataclasses
+
+    import numpy as np
+
+    from pipeline.io.sequence import FramePair
+    from pipeline.stages import kalman
+    from pipeline.trackers.dual import DualConfig
+    from pipeline.trackers.dual.single import _redetect
+    from pipeline.trackers.dual.state import DualTarget
+    from pipeline.trackers.dual.tracker import Dual
+    from pipeline.types import BBox, TargetStatus
+
+    rng = np.random.default_rng(3)
+    H, W, w, h = 160, 240, 20, 40
+
+    def frame(patches):  # a fresh textured scene: only the planted patch repeats
+        vis = rng.integers(0, 256, (H, W, 3), dtype=np.uint8)
+        for (x, y), tex in patches:
+            vis[y : y + h, x : x + w] = tex
+        return FramePair(1, vis, vis[..., 0].copy())
+
+    look = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)  # the target
+    other = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)  # what its filter learned later
+    first = frame([((40, 60), look)])
+    later = frame([((40, 60), other)])
+    now = dataclasses.replace(frame([((170, 60), look)]), index=5)
+    results = {}
+    for on in (True, False):
+        cfg = DualConfig()
+        cfg = dataclasses.replace(cfg, redetect=dataclasses.replace(cfg.redetect, first_model=on))
+        dual = Dual.from_config(cfg)
+        box = BBox(40, 60, w, h)
+        t = DualTarget(
+            1,
+            box,
+            (w, h),
+            np.ones(1),
+            TargetStatus.OCCLUDED_SEVERE,
+            dual.motion.start(box),
+            appearance=dual.appearance.train(later, "dual", box),
+            first_model=dual.appearance.train(first, "dual", box),
+            app_size=(w, h),
+            missing=3,
+        )
+
+        class Place:  # the search's candidates: the place where the target now is
+            cfg = dual.redetector.cfg
+
+            def candidates(self, frames, cs, size, background=None):
+                return [(180.0, 80.0)]
+
+        dual = dataclasses.replace(dual, redetector=Place())
+        prior = kalman.GaussianState(np.array([50.0, 80.0, 0, 0, 0, 0]), np.eye(6))
+        cs = type("CS", (), {"t": t, "prior": prior})()
+        at_prior = dual.appearance.detect(t.appearance, now, "dual", (50.0, 80.0), (w, h))
+        results[on] = _redetect(dual, now, cs, "dual", at_prior, None)
+    (found, redetected), (alone, _) = results[True], results[False]
+    assert redetected
+    assert abs(found.center[0] - 180.0) <= 1 and abs(found.center[1] - 80.0) <= 1
+    assert found.psr >= 9.0  # psr_reacquire
+    assert alone.psr < 7.0  # psr_confident
+
+
 def test_a_cyclist_whose_ir_shows_its_rider_is_not_called_occluded(tmp_path):
     """Random development seed 18: a cyclist (36 x 36 px) whose IR shows the rider (a warm 12 x
     18 px part) and not the bicycle, fully in view, its colour not matching the whole box. Its

@@ -123,8 +123,9 @@ def _redetect(
 ) -> tuple[Detection, bool]:
     """A missing target is searched for at the re-detector's candidates, unless the filter
     finds it where rule 7 takes it back (a confident peak elsewhere in the window, on something
-    the filter learned while the target was hidden, does not stop the search). Returns the best
-    detection and whether the search found it."""
+    the filter learned while the target was hidden, does not stop the search); with
+    ``redetect.first_model``, by its first frame's filter too. Returns the best detection and
+    whether the search found it."""
     t, a = cs.t, dual.appearance
     if t.missing == 0 or dual.redetector is None or a is None or t.appearance is None:
         return best, False
@@ -132,13 +133,26 @@ def _redetect(
     if dual.decider.takes_back(best.psr, best.center, predicted, t.reference_size, t.missing):
         return best, False
     size, redetected = t.app_size, False
+    models, found = _search_models(dual, t), t.appearance
     for c in dual.redetector.candidates(frames, cs, size, background):
-        d = a.detect(t.appearance, frames, mode, c, size, with_scale=False)
-        if d.psr > best.psr:
-            best, redetected = d, True
+        for model in models:
+            d = a.detect(model, frames, mode, c, size, with_scale=False)
+            if d.psr > best.psr:
+                best, redetected, found = d, True, model
     if redetected:  # the size at the place found
-        best = a.detect(t.appearance, frames, mode, best.center, size)
+        best = a.detect(found, frames, mode, best.center, size)
     return best, redetected
+
+
+def _search_models(dual: Dual, t: DualTarget) -> list[AppearanceModel]:
+    """The filters the search for a missing target tries at each place: its current one, and
+    with ``redetect.first_model`` its first frame's once it has learned since."""
+    first = (
+        t.first_model if dual.redetector is not None and dual.redetector.cfg.first_model else None
+    )
+    if first is None or first is t.appearance:
+        return [t.appearance]
+    return [t.appearance, first]
 
 
 def _contour(

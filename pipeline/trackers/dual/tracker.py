@@ -225,6 +225,7 @@ class Dual:
             b.center,
             ((1.0, b.cx, b.cy, b.w, b.h),),
             appearance=model,
+            first_model=model,
             app_size=(b.w, b.h),
             entering=entering,
             part=self.contour.part(b, c, entering),
