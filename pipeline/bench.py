@@ -444,10 +444,9 @@ def random_scene_set(
 
     ``seeds`` names them outright; otherwise the first ``count`` seeds of the ``split``
     (``dev``: tuning, ``test``: only ever scored). A folder is reused when its
-    ``scene.json`` was written with the same generator options.
+    ``scene.json`` was written with the same generator options: ``random-NNNN-tA-B`` as
+    written here, or ``random-NNNN`` as ``dualtrack synth random`` names it.
     """
-    import json as _json
-
     from pipeline.progress import Progress
     from pipeline.synthetic import synthesize_random
     from pipeline.synthetic.family import DEV_SEEDS, TEST_SEEDS
@@ -468,20 +467,26 @@ def random_scene_set(
     with Progress(len(seeds), "random scenes", enabled=progress, unit="scenes") as bar:
         for seed in seeds:
             tag = f"random-{seed:04d}" + (f"-t{targets[0]}-{targets[1]}" if targets else "")
-            d = Path(out) / tag
-            meta = d / "scene.json"
-            ok = False
-            if meta.is_file():
-                try:
-                    m = _json.loads(meta.read_text())
-                    ok = m.get("seed") == seed and m.get("generator") == want
-                except (ValueError, OSError):
-                    ok = False
-            if not ok:
+            names = dict.fromkeys((tag, f"random-{seed:04d}"))  # ours, then synth random's
+            found = [Path(out) / n for n in names if _written_as(Path(out) / n, seed, want)]
+            d = found[0] if found else Path(out) / tag
+            if not found:
                 synthesize_random(d, seed, targets, size, frames, force=True, progress=False)
             dirs.append(d)
             bar.update(1)
     return dirs
+
+
+def _written_as(d: Path, seed: int, want: dict) -> bool:
+    """Whether ``d`` holds the random scene of ``seed`` written with the generator options
+    ``want`` (its ``scene.json``)."""
+    import json as _json
+
+    try:
+        m = _json.loads((d / "scene.json").read_text())
+    except (ValueError, OSError):
+        return False
+    return m.get("seed") == seed and m.get("generator") == want
 
 
 def run_random_bench(

@@ -221,3 +221,20 @@ def test_the_cpu_rate_counts_only_the_trackers_own_work(scene, monkeypatch, tmp_
     s = run_track(scene("pole-fast"), opts).summary
     n = s["frames"]
     assert s["fps_tracking"] <= 50 * n / (n - 1) and s["fps_tracking_cpu"] > 3 * s["fps_tracking"]
+
+
+def test_random_scene_set_reuses_a_scene_written_by_synth_random(tmp_path):
+    """A ``dualtrack synth random`` folder (``random-NNNN``) with the same generator options is
+    reused, not written again beside it as ``random-NNNN-tA-B``; with other options the scene is
+    written under its own name."""
+    from pipeline.bench import random_scene_set
+    from pipeline.synthetic import synthesize_random
+
+    out = tmp_path / "scenes"
+    synthesize_random(out / "random-0003", 3, (2, 3), (160, 120), 30, progress=False)
+    same = random_scene_set(seeds=range(3, 4), targets=(2, 3), out=out, size=(160, 120), frames=30)
+    assert same == [out / "random-0003"]
+    assert sorted(p.name for p in out.iterdir()) == ["random-0003"]
+    other = random_scene_set(seeds=range(3, 4), targets=(2, 3), out=out, size=(160, 120), frames=31)
+    assert other == [out / "random-0003-t2-3"]
+    assert (out / "random-0003-t2-3" / "scene.json").is_file()
