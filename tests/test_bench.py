@@ -232,9 +232,10 @@ def test_random_scene_set_reuses_a_scene_written_by_synth_random(tmp_path):
 
     out = tmp_path / "scenes"
     synthesize_random(out / "random-0003", 3, (2, 3), (160, 120), 30, progress=False)
-    same = random_scene_set(seeds=range(3, 4), targets=(2, 3), out=out, size=(160, 120), frames=30)
+    opts = {"seeds": range(3, 4), "targets": (2, 3), "out": out, "size": (160, 120)}
+    same = random_scene_set(**opts, frames=30)
     assert same == [out / "random-0003"]
     assert sorted(p.name for p in out.iterdir()) == ["random-0003"]
-    other = random_scene_set(seeds=range(3, 4), targets=(2, 3), out=out, size=(160, 120), frames=31)
+    other = random_scene_set(**opts, frames=31)
     assert other == [out / "random-0003-t2-3"]
     assert (out / "random-0003-t2-3" / "scene.json").is_file()
