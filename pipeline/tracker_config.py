@@ -128,11 +128,12 @@ class RedetectConfig(Section):
         Missing frames after which the whole frame is searched, >= 1; default 12.
     first_model : bool
         The search also tries, at each place, the target's filter as trained on its first
-        frame, and takes the better peak: a filter that learned something else before the
-        target was lost (a passer-by, an occluder's edge, a partly hidden view) does not also
-        stop it from being found again; default True. It doubles the search's filter
-        evaluations (a missing target's only); a target whose look has changed since its first
-        frame is found by its current filter as before.
+        frame (for a target walking in, on the frame it is whole by), and takes the better
+        peak: a filter that learned something else before the target was lost (a passer-by,
+        an occluder's edge, a partly hidden view) does not also stop it from being found
+        again; default True. It doubles the search's filter evaluations (a missing target's
+        only); a target whose look has changed since its first frame is found by its current
+        filter as before.
     every_frames : int
         A missing target is searched for every this many frames, >= 1; default 2.
     candidates : int

@@ -326,6 +326,39 @@ def test_a_target_walking_in_through_the_border_grows_its_box(tmp_path):
     assert before < 0.7 and after >= 0.75, (before, after)
 
 
+def test_a_target_that_walked_in_is_searched_for_with_its_whole_first_filter(tmp_path):
+    """Random development seed 34 again: the filter trained afresh on the frame the person has
+    walked in whole by (``walked-in``) replaces the one trained on its cut first box as the
+    filter the search for it tries besides its current one (``redetect.first_model``); before
+    that frame it is the first frame's."""
+    import cv2
+
+    from pipeline.api import DualTracker
+    from pipeline.synthetic import synthesize_random
+    from pipeline.types import BBox
+
+    d = synthesize_random(tmp_path / "s", 34, targets=1, progress=False)
+    x, y, w, h = np.loadtxt(d / "visible.txt", delimiter=",")[0, :4]
+
+    def frame(t):
+        vis = cv2.imread(str(d / "visible" / f"{t:05d}v.jpg"))
+        return vis, cv2.imread(str(d / "infrared" / f"{t:05d}i.jpg"), 0)
+
+    tr = DualTracker()
+    tr.start(frame(1), [BBox(x, y, w, h)])
+    first = tr._engine.state.targets[0].first_model
+    walked = None
+    for t in range(2, 21):
+        result = tr.step(frame(t))
+        target = tr._engine.state.targets[0]
+        if result.targets[0].decision.rule == Rule.WALKED_IN:
+            walked = t
+            assert target.first_model is target.appearance
+            break
+        assert target.first_model is first
+    assert walked is not None
+
+
 def test_a_measurement_over_a_collapsed_contour_teaches_nothing_beside_another_target():
     """Another target's box within half a box of the measurement (either side, either axis):
     the colour match cannot tell that target from this one, so the models do not learn there."""

@@ -311,6 +311,8 @@ def update(
         last_update=str(colour),
         split_frame=frames.index if m.start is not None else t.split_frame,
         appearance=model,
+        # a target that walked in is first seen whole now: its filter, trained afresh, is its first
+        first_model=model if d.rule == Rule.WALKED_IN else t.first_model,
         case=d.case.value,
         speed=step_speed(history) if len(history) >= 2 else t.speed,
         partial=d.partial,

@@ -49,8 +49,9 @@ class DualTarget:
     many cold-started level sets running found nothing, the last at frame ``empty_start_frame``
     (``contour.retry_empty_frames``); ``part`` the size of the warm part of it that its IR
     contour shows, as shares of its box's width and height (``contour.warm_part``), None where
-    the contour is the whole target; ``first_model`` its filter as trained on its first frame,
-    which the search for it when missing also tries (``redetect.first_model``).
+    the contour is the whole target; ``first_model`` its filter as trained on its first frame
+    (or on the frame it had walked in whole by), which the search for it when missing also
+    tries (``redetect.first_model``).
     """
 
     id: int
