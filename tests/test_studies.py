@@ -328,3 +328,70 @@ def test_rounding_spread_moves_one_parameter_by_its_last_bits(tmp_path):
     assert got["param"] == "dual.levelset.timestep" and len(got["moved"]["fast"]) == 2
     p20, auc = got["base"]["fast"]
     assert f"| fast | {p20:.3f} | {auc:.3f} |" in text
+
+
+def test_failure_modes_groups_targets_by_kind_and_first_frame():
+    """``--by-target``: each target's groups from its parameters and its first frame; the box
+    reaching lower in the frame is the nearer of two that overlap."""
+    fm = _tool("failure_modes")
+    boxes = {1: (10.0, 10.0, 10.0, 30.0), 2: (15.0, 20.0, 10.0, 30.0), 3: (90.0, 0.0, 5.0, 5.0)}
+    params = {"kind": "car", "motion": "fast", "scale": "recede", "entering": True}
+    assert fm.target_groups(params, 1, boxes, 0.5) == [
+        "all",
+        "kind=car",
+        "motion=fast",
+        "depth=recede",
+        "entering=yes",
+        "start=behind another target",
+        "start=partly hidden",
+    ]
+    assert fm.target_groups({}, 2, boxes, 1.0) == ["all", "start=in front of another target"]
+    assert fm.target_groups({}, 3, boxes, 0.95) == ["all", "start=clear"]
+    # a touch under a tenth of the smaller box is no overlap
+    assert fm.target_groups({}, 1, {1: (0, 0, 10, 10), 2: (9.1, 0, 10, 10)}, 1.0)[-1] == (
+        "start=clear"
+    )
+    assert fm.rule_key("lost:51-frames-without-a-measurement") == (
+        "lost:N-frames-without-a-measurement"
+    )
+    assert fm.rule_key("coast:measurement-taken-by-T12") == "coast:measurement-taken-by-T"
+    assert fm.rule_key("") == "none"
+
+
+def test_failure_modes_tallies_a_run_by_target_group_and_rule(tmp_path):
+    """A run whose boxes are all elsewhere fails on every frame in view: the tallies by group and
+    by rule count exactly those frames, under the decisions written."""
+    import csv
+    from collections import Counter
+
+    fm = _tool("failure_modes")
+    scene = tmp_path / "scenes" / "random-0003"
+    args = ["synth", "random", str(scene), "--seed", "3", "--targets", "2", "--frames", "30"]
+    subprocess.run([sys.executable, "-m", "pipeline", *args], check=True, cwd=ROOT)
+    run = tmp_path / "runs" / "dual" / "random-0003"
+    run.mkdir(parents=True)
+    why = {1: "appearance:appearance-contour-leak", 2: "coast:measurement-taken-by-T1"}
+    with open(run / "targets.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frame", "id", "x_px", "y_px", "w_px", "h_px", "status", "decision"])
+        for f in range(1, 31):
+            for tid in (1, 2):
+                w.writerow([f, tid, 0, 0, 1, 1, "tracking", why[tid]])
+    sf = fm.scene_failures(scene, run)
+    hidden = sf.counts["hidden"]
+    in_view = sf.total - hidden
+    assert in_view > 0 and sum(sf.counts[k] for k in fm.CLASSES) == sf.total
+    assert sf.groups[("all", "targets")] == 2
+    assert sf.groups[("all", "frames")] == sf.groups[("all", "failed")] == in_view
+    leak, taken = "appearance:appearance-contour-leak", "coast:measurement-taken-by-T"
+    assert {k for k, _ in sf.rules} == {leak, taken}
+    for k in (leak, taken):
+        assert sf.rules[(k, "failed")] == sf.rules[(k, "frames")] > 0
+    assert sf.rules[(leak, "frames")] + sf.rules[(taken, "frames")] == in_view
+    meta = json.loads((scene / "scene.json").read_text())
+    kinds = Counter(p["kind"] for p in meta["params"]["targets"])
+    for kind, n in kinds.items():
+        assert sf.groups[(f"kind={kind}", "targets")] == n
+    rows = fm.group_table(sf.rules, "decision", ("frames", "failed"))
+    assert rows[0] == "| decision | frames | failed | share of failures |"
+    assert len(rows) == 4 and all(" | 1.000 | " in r for r in rows[2:])

@@ -40,6 +40,15 @@ visible on each): the frame, the class there, the tracker's decision on the fram
 the onset, and the target's visibility on frame 1 (a first box partly hidden, or holding another
 object, is where a filter can learn the wrong thing). Failures that begin at a track's start read
 differently from drifts late in a crossing; this is where to look before changing a rule.
+
+``--by-target`` also tabulates the failures by the kind of target (from ``scene.json``: its
+``kind``, ``motion``, depth motion, whether it enters through the border) and by its first frame
+(its box overlapping another target's by at least a tenth of the smaller box, the nearer of the
+two being the one whose box reaches lower in the frame; visibility under 0.9): per group the
+targets, their target-frames in view (visibility >= 0.25), the share of those failed and the
+group's share of all failed target-frames in view. ``--by-rule`` tabulates the same frames by the
+decision the tracker made on them (``targets.csv``'s ``decision``, its numbers and other targets'
+ids dropped): how often each rule's measurement, or coast, misses the target.
 """
 
 from __future__ import annotations
@@ -47,6 +56,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import re
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -86,12 +96,22 @@ class Onset:
     failed: int  # the target's failed target-frames in the run, sustained or not
 
 
-def scene_failures(
-    scene_dir: Path, run_dir: Path, run: int = 10
-) -> tuple[Counter, int, list[Onset]]:
-    """(failed target-frames per class, target-frames with truth, each target's first sustained
-    failure: ``run`` consecutive failed frames with the target at least 0.25 visible) of one
-    run."""
+@dataclass(frozen=True)
+class SceneFailures:
+    """One run's failures on one scene (see :func:`scene_failures`)."""
+
+    counts: Counter  # failed target-frames per class (and the size and coasting splits)
+    total: int  # target-frames with truth
+    onsets: list[Onset]
+    groups: Counter  # (group, "targets" | "frames" | "failed") -> count, for --by-target
+    rules: Counter  # (rule, "frames" | "failed") -> count, for --by-rule
+
+
+def scene_failures(scene_dir: Path, run_dir: Path, run: int = 10) -> SceneFailures:
+    """The failures of one run: the failed target-frames per class, the target-frames with
+    truth, each target's first sustained failure (``run`` consecutive failed frames with the
+    target at least 0.25 visible), and the frames in view tallied by target group and by
+    decision rule."""
     meta = json.loads((scene_dir / "scene.json").read_text())
     gen = meta.get("generator")
     if gen is None:
@@ -110,21 +130,25 @@ def scene_failures(
         for r in csv.DictReader(fh):
             box = tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
             out[(int(r["frame"]), int(r["id"]))] = (r["status"], box, r.get("decision", ""))
-    depth = {
-        int(p["id"]): str(p.get("scale", "constant"))
-        for p in meta.get("params", {}).get("targets", [])
-    }
+    params = {int(p["id"]): p for p in meta.get("params", {}).get("targets", [])}
+    depth = {tid: str(p.get("scale", "constant")) for tid, p in params.items()}
+    groups: Counter = Counter()
+    rules: Counter = Counter()
+    in_view: dict[int, list[bool]] = {}  # per target: failed, on each frame in view
     counts: Counter = Counter()
     total = 0
     # per target: (frame, class or None when on the target or hidden, decision)
     seq: dict[int, list[tuple[int, str | None, str]]] = {}
     first_vis: dict[int, float] = {}
+    first_boxes: dict[int, Box] = {}
     for t in range(1, drawn.scene.n_frames + 1):
         f = renderer.render_frame(t)
         others = [b for b in (f.others or {}).values() if b is not None]
         for tid, truth in f.truth_visible.items():
             if t == 1:
                 first_vis[tid] = float(f.visibility.get(tid, 0.0))
+                if truth is not None:
+                    first_boxes[tid] = truth
             if truth is None:
                 continue
             total += 1
@@ -137,7 +161,19 @@ def scene_failures(
             if cls == "coasting":
                 counts[coast_key(box, truth, decision)] += 1
             seq.setdefault(tid, []).append((t, None if cls == "hidden" else cls, decision))
-    return counts, total, _onsets(scene_dir.name, seq, first_vis, run)
+            if cls != "hidden":
+                in_view.setdefault(tid, []).append(cls is not None)
+                key = rule_key(decision)
+                rules[(key, "frames")] += 1
+                rules[(key, "failed")] += cls is not None
+    for tid, failed in in_view.items():
+        for g in target_groups(params.get(tid, {}), tid, first_boxes, first_vis.get(tid, 1.0)):
+            groups[(g, "targets")] += 1
+            groups[(g, "frames")] += len(failed)
+            groups[(g, "failed")] += sum(failed)
+    return SceneFailures(
+        counts, total, _onsets(scene_dir.name, seq, first_vis, run), groups, rules
+    )
 
 
 def _failure(status, box, truth, f, tid, others) -> str | None:
@@ -244,6 +280,100 @@ def coast_split(counts: Counter) -> str:
     )
 
 
+def rule_key(decision: str) -> str:
+    """The decision a target-frame is tallied under by ``--by-rule``: ``targets.csv``'s
+    ``decision`` with its numbers and the other targets' ids dropped.
+
+    Examples
+    --------
+    >>> rule_key("lost:51-frames-without-a-measurement")
+    'lost:N-frames-without-a-measurement'
+    >>> rule_key("coast:measurement-taken-by-T2")
+    'coast:measurement-taken-by-T'
+    >>> rule_key("")
+    'none'
+    """
+    return re.sub(r"\d+", "N", re.sub(r"-T\d+$", "-T", decision)) or "none"
+
+
+def target_groups(
+    params: dict, tid: int, first_boxes: dict[int, Box], first_visibility: float
+) -> list[str]:
+    """The ``--by-target`` groups of target ``tid``: ``all``, its ``kind``, ``motion``,
+    ``depth`` (``scale``) and ``entering`` from its ``scene.json`` parameters, and its first
+    frame: ``start=behind another target`` / ``start=in front of another target`` where its
+    truth box overlaps another's by at least a tenth of the smaller box (the nearer is the one
+    reaching lower in the frame), else ``start=clear``; ``start=partly hidden`` where under 0.9
+    of it is visible.
+
+    Examples
+    --------
+    >>> boxes = {1: (10.0, 10.0, 10.0, 30.0), 2: (15.0, 20.0, 10.0, 30.0), 3: (90.0, 0, 5, 5)}
+    >>> target_groups({"kind": "person", "motion": "fast", "scale": "approach",
+    ...                "entering": False}, 1, boxes, 0.6)
+    ['all', 'kind=person', 'motion=fast', 'depth=approach', 'entering=no', 'start=behind another target', 'start=partly hidden']
+    >>> target_groups({}, 2, boxes, 1.0)[-1], target_groups({}, 3, boxes, 1.0)[-1]
+    ('start=in front of another target', 'start=clear')
+    """  # noqa: E501
+    out = ["all"]
+    for key, name in (("kind", "kind"), ("motion", "motion"), ("scale", "depth")):
+        if key in params:
+            out.append(f"{name}={params[key]}")
+    if "entering" in params:
+        out.append(f"entering={'yes' if params['entering'] else 'no'}")
+    mine = first_boxes.get(tid)
+    behind = in_front = False
+    if mine is not None:
+        for other, box in first_boxes.items():
+            if other == tid:
+                continue
+            ix = max(0.0, min(mine[0] + mine[2], box[0] + box[2]) - max(mine[0], box[0]))
+            iy = max(0.0, min(mine[1] + mine[3], box[1] + box[3]) - max(mine[1], box[1]))
+            if ix * iy < 0.1 * min(mine[2] * mine[3], box[2] * box[3]):
+                continue
+            if box[1] + box[3] > mine[1] + mine[3]:
+                behind = True
+            else:
+                in_front = True
+    if behind:
+        out.append("start=behind another target")
+    elif in_front:
+        out.append("start=in front of another target")
+    else:
+        out.append("start=clear")
+    if first_visibility < 0.9:
+        out.append("start=partly hidden")
+    return out
+
+
+def group_table(tally: Counter, what: str, fields: tuple[str, ...]) -> list[str]:
+    """Markdown rows of ``tally`` ((key, field) -> count, as :class:`SceneFailures` holds):
+    per key its ``fields`` other than ``failed``, the failed share of its frames and its share
+    of all failed frames (those of the key ``all`` where there is one, else the sum), most
+    failed frames first.
+
+    Examples
+    --------
+    >>> t = Counter({("a", "frames"): 10, ("a", "failed"): 5, ("b", "frames"): 30,
+    ...              ("b", "failed"): 3})
+    >>> print("\\n".join(group_table(t, "rule", ("frames", "failed"))))
+    | rule | frames | failed | share of failures |
+    |---|---|---|---|
+    | a | 10 | 0.500 | 0.62 |
+    | b | 30 | 0.100 | 0.38 |
+    """
+    keys = sorted({k for k, _ in tally}, key=lambda k: (-tally[(k, "failed")], k))
+    everything = tally[("all", "failed")] or sum(tally[(k, "failed")] for k in keys)
+    rows = [f"| {what} | " + " | ".join(fields) + " | share of failures |"]
+    rows.append("|---|" + "---|" * (len(fields) + 1))
+    for k in keys:
+        n, bad = tally[(k, "frames")], tally[(k, "failed")]
+        cells = [str(tally[(k, f)]) for f in fields if f != "failed"]
+        cells.append(f"{bad / max(n, 1):.3f}")
+        rows.append(f"| {k} | " + " | ".join(cells) + f" | {bad / max(everything, 1):.2f} |")
+    return rows
+
+
 def _onsets(
     scene: str,
     seq: dict[int, list[tuple[int, str | None, str]]],
@@ -273,18 +403,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--worst", type=int, default=10)
     ap.add_argument("--onsets", type=int, default=0, metavar="N")
     ap.add_argument("--run", type=int, default=10, metavar="FRAMES")
+    ap.add_argument("--by-target", action="store_true", help="failures by target group")
+    ap.add_argument("--by-rule", action="store_true", help="failures by decision rule")
     a = ap.parse_args(argv)
     rows = []
     onsets: list[Onset] = []
     grand: Counter = Counter()
+    groups: Counter = Counter()
+    rules: Counter = Counter()
     n_all = 0
     for scene_dir in sorted((a.root / "scenes").iterdir()):
         run_dir = a.root / "runs" / a.tracker / scene_dir.name
         if not (run_dir / "targets.csv").is_file():
             continue
-        c, n, o = scene_failures(scene_dir, run_dir, a.run)
-        onsets += o
+        sf = scene_failures(scene_dir, run_dir, a.run)
+        c, n = sf.counts, sf.total
+        onsets += sf.onsets
         grand.update(c)
+        groups.update(sf.groups)
+        rules.update(sf.rules)
         n_all += n
         rows.append((sum(c[k] for k in CLASSES) / max(n, 1), scene_dir.name, c, n))
     rows.sort(reverse=True)
@@ -301,6 +438,12 @@ def main(argv: list[str] | None = None) -> int:
     print(coast_split(grand))
     if a.onsets > 0:
         _print_onsets(onsets, a.onsets, a.run)
+    if a.by_target:
+        print("\nTarget-frames in view (visibility >= 0.25) by target group:\n")
+        print("\n".join(group_table(groups, "group", ("targets", "frames", "failed"))))
+    if a.by_rule:
+        print("\nTarget-frames in view by the tracker's decision on them:\n")
+        print("\n".join(group_table(rules, "decision", ("frames", "failed"))))
     return 0
 
 
