@@ -1,6 +1,7 @@
 """Where a tracker misses the truth on random scenes, and why: its failed target-frames by cause.
 
-Usage: python tools/failure_modes.py RUN_ROOT [--tracker dual] [--worst 10]
+Usage: python tools/failure_modes.py RUN_ROOT [--tracker dual] [--worst 10] [--onsets N]
+       [--by-target] [--by-rule]
 
 ``RUN_ROOT`` is a ``dualtrack bench --random N --out RUN_ROOT`` folder (``scenes/`` and
 ``runs/<tracker>/<scene>/targets.csv``), or any folder laid out so: ``scenes/`` may be a set
