@@ -71,10 +71,15 @@ CLASSES = ("hidden", "on-other", "lost", "coasting", "size", "drift")
 Box = tuple[float, float, float, float]
 
 
-def iou(a: Box, b: Box) -> float:
+def intersection(a: Box, b: Box) -> float:
+    """The area two boxes share, px^2."""
     ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
     iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
-    inter = ix * iy
+    return ix * iy
+
+
+def iou(a: Box, b: Box) -> float:
+    inter = intersection(a, b)
     union = a[2] * a[3] + b[2] * b[3] - inter
     return inter / union if union > 0 else 0.0
 
@@ -328,9 +333,7 @@ def target_groups(
         for other, box in first_boxes.items():
             if other == tid:
                 continue
-            ix = max(0.0, min(mine[0] + mine[2], box[0] + box[2]) - max(mine[0], box[0]))
-            iy = max(0.0, min(mine[1] + mine[3], box[1] + box[3]) - max(mine[1], box[1]))
-            if ix * iy < 0.1 * min(mine[2] * mine[3], box[2] * box[3]):
+            if intersection(mine, box) < 0.1 * min(mine[2] * mine[3], box[2] * box[3]):
                 continue
             if box[1] + box[3] > mine[1] + mine[3]:
                 behind = True
