@@ -722,7 +722,9 @@ class DetectConfig(Section):
     Parameters
     ----------
     detection : DetectionConfig
-        STDM / foreground detection and ROI discrimination.
+        STDM / foreground detection and ROI discrimination (``split_core_fraction`` 0 here:
+        touching regions are not split; the tracker keeps a blob that holds several tracks'
+        predictions as their merged blob and places its members inside it).
     roi_match : RoiMatchConfig
         The affine-invariant ROI correlation (the image term of the association).
     association : AssociationConfig
@@ -733,7 +735,9 @@ class DetectConfig(Section):
 
     section = "detect"
 
-    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    detection: DetectionConfig = field(
+        default_factory=lambda: DetectionConfig(split_core_fraction=0.0)
+    )
     roi_match: RoiMatchConfig = field(default_factory=RoiMatchConfig)
     association: AssociationConfig = field(default_factory=AssociationConfig)
     kalman: KalmanConfig = field(default_factory=KalmanConfig)

@@ -93,11 +93,6 @@ class AssociationConfig(Section):
         (px/frame^2)^2), > 0; default 0.5: detected targets turn and stop.
     position_std_px : float
         Measurement noise of a detection's centre, px, > 0; default 2.
-    split_touching : bool
-        Whether the detection-driven tracker splits touching regions (``detection.
-        split_core_fraction``); default False: it keeps a blob that holds several tracks'
-        predictions as their merged blob, and split fragments of two crossing people measure
-        neither (crossing3 IDF1 0.993 without the split, 0.666 with it).
     place_in_blobs : bool
         Whether the members of a merged blob (a region holding two or more confirmed tracks'
         predictions) are placed inside it by their templates and motion
@@ -137,7 +132,6 @@ class AssociationConfig(Section):
     use_visible_regions: bool = False
     position_noise: float = param(0.5, gt=0)
     position_std_px: float = param(2.0, gt=0)
-    split_touching: bool = False
     place_in_blobs: bool = True
     blob_min_correlation: float = param(0.5, ge=-1, le=1)
     blob_reach_fraction: float = param(0.25, gt=0)

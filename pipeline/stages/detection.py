@@ -170,9 +170,11 @@ class DetectionConfig(Section):
     split_core_fraction : float
         Beyond the paper: a region whose distance transform has two or more cores above this
         fraction of its maximum (two torsos joined at a narrower neck) is split, every pixel
-        going to its nearest core, in [0, 1); default 0.7, 0 disables. Decreasing it splits
-        more readily, down to one body's head and torso. The detection-driven tracker does
-        not split unless ``association.split_touching``.
+        going to its nearest core, in [0, 1); default 0.7 (the dual tracker's whole-frame
+        search, ``dual.redetect.detection``), 0 in ``detect.detection`` (``dualtrack detect``
+        and the ``detect`` tracker: a car's front and rear, a cyclist's wheels and two
+        crossing people's halves are split as readily as two touching bodies), 0 disables.
+        Decreasing it splits more readily, down to one body's head and torso.
     split_min_core_px : int
         Cores smaller than this (px) do not count, >= 1; default 10 (a head's core stays
         under it).

@@ -124,11 +124,9 @@ def _motion_cfg(k: kalman.KalmanConfig, a: AssociationConfig) -> kalman.KalmanCo
 
 @functools.lru_cache(maxsize=8)
 def _detection_cfg(dcfg: DetectionConfig, a: AssociationConfig) -> DetectionConfig:
-    """The detection settings the tracker runs with: touching regions are split only on request
-    (``association.split_touching``), the visible channel's regions only looked for on request
-    (``association.use_visible_regions``); made once per configuration, not every frame."""
-    if not a.split_touching:
-        dcfg = dataclasses.replace(dcfg, split_core_fraction=0.0)
+    """The detection settings the tracker runs with: the visible channel's regions only looked
+    for on request (``association.use_visible_regions``); made once per configuration, not every
+    frame."""
     return dcfg if a.use_visible_regions else infrared_only(dcfg)
 
 

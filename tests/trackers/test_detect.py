@@ -73,6 +73,45 @@ def test_detect_command_outputs_and_scores(scene, tmp_path):
     )  # det.txt is 1-based
 
 
+def test_a_car_is_one_box_for_the_detect_command_and_the_tracker(tmp_path):
+    """Development seed 44's lone car (18 px tall, warm body, cooler wheels): ``dualtrack detect``
+    gives the regions the ``detect`` tracker uses, one box on the car in every frame where it is
+    in view; the touching-body split (``split_core_fraction``, the dual tracker's whole-frame
+    search) cuts its front from its rear on a third of the frames."""
+    from pipeline.config import load_config
+    from pipeline.synthetic import synthesize_random
+    from pipeline.trackers.detect import DetectAndAssociate
+
+    sc = synthesize_random(tmp_path / "car", 44, targets=1, frames=40)
+    truth = np.loadtxt(sc / "visible.txt", delimiter=",", ndmin=2)
+
+    def whole(out, sets):
+        run_detect(sc, out, sets=sets, rrd=False, progress=False)
+        rows = [r for r in csv.DictReader((out / "rois.csv").read_text().splitlines())]
+        n = 0
+        for f, t in enumerate(truth, start=1):
+            boxes = [
+                tuple(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))
+                for r in rows
+                if int(r["frame"]) == f and r["accepted"] == "1" and r["reason"] == "ok"
+            ]
+            n += any(_iou(b, tuple(t[:4])) >= 0.5 for b in boxes)
+        return n
+
+    assert whole(tmp_path / "d", []) >= 38
+    assert whole(tmp_path / "split", ["detect.detection.split_core_fraction=0.7"]) <= 30
+    cfg = load_config(None, []).detect
+    assert (
+        DetectAndAssociate(cfg).detection.split_core_fraction == cfg.detection.split_core_fraction
+    )
+
+
+def _iou(a, b):
+    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
+    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
+    return ix * iy / (a[2] * a[3] + b[2] * b[3] - ix * iy)
+
+
 def test_detect_initialises_the_dual_tracker(scene, tmp_path):
     res = run_track(
         scene("crossing2"),
