@@ -117,6 +117,38 @@ def test_the_mot_peers_get_the_detections_the_detect_tracker_uses(tmp_path):
     assert _tool("mot_peers")._dets(scored, 40.0) == ["1,-1,11.00,21.00,8.00,30.00,0.911"]
 
 
+def test_perfect_ids_give_each_box_the_target_it_overlaps():
+    """The identity ceiling's relabelling: a tracker that swapped its two ids on frame 2 gets
+    the truth's ids back on both frames; two boxes on one target, one target each (the better
+    overlap keeps it); a box on nothing, or under IoU 0.5, gets a fresh id; MOT rows 1-based."""
+    perfect_ids, boxes = _tool("mot_peers").perfect_ids, _tool("mot_peers")._boxes
+    truth = {
+        7: np.array([[0.0, 0, 10, 20], [2.0, 0, 10, 20]]),
+        8: np.array([[30.0, 0, 10, 20], [np.nan] * 4]),
+    }
+    tracks = boxes(
+        [
+            "1,1,1,1,10,20,1,-1,-1,-1",  # on 7
+            "1,2,31,1,10,20,1,-1,-1,-1",  # on 8
+            "2,2,3,1,10,20,1,-1,-1,-1",  # on 7, with the other id
+            "2,1,4,1,10,20,1,-1,-1,-1",  # on 7 too, a little off: no target left for it
+            "2,3,31,1,10,20,1,-1,-1,-1",  # where 8 was: 8 is gone
+            "2,4,9,1,10,20,1,-1,-1,-1",  # overlapping 7 at IoU 0.25
+        ]
+    )
+    assert tracks[2][0] == (2.0, 0.0, 10.0, 20.0)  # read back 0-based
+    rows = [r.split(",")[:2] for r in perfect_ids(tracks, truth, first_free=100)]
+    assert rows == [
+        ["1", "7"],
+        ["1", "8"],
+        ["2", "7"],
+        ["2", "100"],
+        ["2", "101"],
+        ["2", "102"],
+    ]
+    assert perfect_ids({}, truth) == []
+
+
 def test_the_mot_peers_tool_says_when_their_environment_is_missing(tmp_path, capsys):
     code = _tool("mot_peers").main(
         ["--seeds", "0-0", "--out", str(tmp_path), "--peer-python", str(tmp_path / "nope")]

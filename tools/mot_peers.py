@@ -9,7 +9,10 @@ parameters, run by ``tools/mot_peer_worker.py`` in their own environment, made b
 two-stage association then sees one class of detection); ``dualtrack track --tracker detect``
 runs on the same scene. Every result is scored by ``dualtrack evaluate`` (ids matched by the
 IDF1 assignment). Prints per tracker the mean, 10th percentile and worst of IDF1, with MOTA,
-HOTA and purity means, and the trackers' own seconds.
+HOTA and purity means, and the trackers' own seconds; and two ceilings (:func:`perfect_ids`):
+the ``detect`` tracker's boxes and the detections, each box given the id of the target it
+overlaps. The tracker's own figure below its boxes' ceiling is what it loses in identities; the
+boxes' ceiling below the detections' is what its boxes lose against the detector's.
 
     tools/mot_peer_venv.sh                      # once: .venv-mot
     python tools/mot_peers.py --seeds 1500-1519 --out runs/mot-peers [--json r.json]
@@ -60,6 +63,63 @@ def _dets(rois: Path, min_perimeter_px: float) -> list[str]:
     return rows
 
 
+def perfect_ids(
+    boxes: dict[int, list[tuple[float, float, float, float]]],
+    truth: dict[int, np.ndarray],
+    first_free: int = 1_000_000,
+) -> list[str]:
+    """MOTChallenge rows (1-based) of ``boxes`` (frame -> 0-based ``(x, y, w, h)``) with the ids
+    a perfect association would give them: on every frame, the truth id of the target a box
+    overlaps at IoU >= 0.5 in the one-to-one assignment of highest total IoU, and a fresh id
+    from ``first_free`` on for a box on no target. ``truth`` is target id -> ``(frames, 4)``
+    0-based boxes, NaN where absent (:meth:`pipeline.io.sequence.Truth.primary`). Scored, these
+    rows are the identity ceiling of the boxes: what they reach when no identity is lost.
+
+    Examples
+    --------
+    >>> truth = {1: np.array([[0.0, 0, 10, 10]]), 2: np.array([[20.0, 0, 10, 10]])}
+    >>> perfect_ids({1: [(21.0, 0, 10, 10), (0.0, 1, 10, 10), (50.0, 50, 5, 5)]}, truth, 9)
+    ['1,2,22.00,1.00,10.00,10.00,1,-1,-1,-1', '1,1,1.00,2.00,10.00,10.00,1,-1,-1,-1', \
+'1,9,51.00,51.00,5.00,5.00,1,-1,-1,-1']
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    rows, fresh = [], first_free
+    for f in sorted(boxes):
+        bs = boxes[f]
+        ids = [g for g, b in truth.items() if f - 1 < len(b) and not np.isnan(b[f - 1]).any()]
+        named: dict[int, int] = {}
+        if bs and ids:
+            iou = np.array([[_iou(b, tuple(truth[g][f - 1])) for g in ids] for b in bs])
+            for i, j in zip(*linear_sum_assignment(-iou), strict=True):
+                if iou[i, j] >= 0.5:
+                    named[int(i)] = ids[j]
+        for k, (x, y, w, h) in enumerate(bs):
+            if k not in named:
+                named[k], fresh = fresh, fresh + 1
+            rows.append(f"{f},{named[k]},{x + 1:.2f},{y + 1:.2f},{w:.2f},{h:.2f},1,-1,-1,-1")
+    return rows
+
+
+def _iou(a, b) -> float:
+    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
+    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
+    union = a[2] * a[3] + b[2] * b[3] - ix * iy
+    return ix * iy / union if union > 0 else 0.0
+
+
+def _boxes(mot_rows: list[str] | Path) -> dict[int, list[tuple[float, float, float, float]]]:
+    """frame -> 0-based boxes of MOTChallenge rows (a file or its lines)."""
+    lines = mot_rows.read_text().splitlines() if isinstance(mot_rows, Path) else mot_rows
+    out: dict[int, list[tuple[float, float, float, float]]] = {}
+    for line in lines:
+        v = line.split(",")
+        if len(v) >= 6:
+            x, y, w, h = (float(t) for t in v[2:6])
+            out.setdefault(int(v[0]), []).append((x - 1, y - 1, w, h))
+    return out
+
+
 def _quiet(fn, *a):
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         return fn(*a)
@@ -78,6 +138,14 @@ def prepare(scene: Path, out: Path, min_perimeter_px: float, force: bool) -> dic
         _quiet(main, [*args, "--no-rrd", "--no-plots", "--force"])
     rows = _dets(run / "det" / "rois.csv", min_perimeter_px)
     (run / "dets.txt").write_text("\n".join(rows) + "\n")
+    from pipeline.io.sequence import open_sequence
+
+    truth = open_sequence(scene).truth.primary()
+    for name, boxes in (
+        ("detections-perfect-ids", _boxes(rows)),
+        ("detect-perfect-ids", _boxes(run / "detect" / "tracks.csv")),
+    ):
+        (run / f"{name}.csv").write_text("\n".join(perfect_ids(boxes, truth)) + "\n")
     ones = [",".join([*r.split(",")[:6], "1"]) for r in rows]
     (run / "dets-one.txt").write_text("\n".join(ones) + "\n")
     frames = json.loads((run / "det" / "summary.json").read_text())["frames"]
@@ -143,6 +211,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     peer_info = json.loads(done.stdout.strip().splitlines()[-1])
     names = ["detect"] + [f"{t}{k}" for t in PEERS for k in ("", "-one")]
+    names += ["detect-perfect-ids", "detections-perfect-ids"]
     table: dict[str, list[dict[str, float]]] = {n: [] for n in names}
     for s, run in runs:
         table["detect"].append(score(s, run / "detect" / "tracks.csv"))
@@ -151,7 +220,8 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"{len(runs)} scenes (seeds {a.seeds}, {a.targets} targets); peers: trackers "
         f"{peer_info['versions']['trackers']}, supervision {peer_info['versions']['supervision']}"
-        "; '-one': every detection scored 1"
+        "; '-one': every detection scored 1; '-perfect-ids': the detect tracker's boxes and the "
+        "detections with the ids of the truth they overlap (the identity ceiling)"
     )
     print("| tracker | IDF1 mean | IDF1 p10 | IDF1 worst | MOTA | HOTA | purity |")
     print("|---|---|---|---|---|---|---|")
