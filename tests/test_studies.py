@@ -233,13 +233,22 @@ def test_detection_quality_classes_planted_boxes(tmp_path):
         "3,60,60,5,5,20,1,ok",  # A missed (nothing on it), a false detection
     ]
     (tmp_path / "rois.csv").write_text(head + "\n".join(rois) + "\n")
+    kinds = {"params": {"targets": [{"id": 1, "kind": "person"}, {"id": 2, "kind": "car"}]}}
+    (tmp_path / "scene.json").write_text(json.dumps(kinds))
     r = dq.score_scene(tmp_path, tmp_path / "rois.csv", 18.0, 0.25)
     assert r["counts"] == {"covered": 1, "fragment": 1, "oversize-other": 2, "missed": 1}
     # detections: frame 1 two (one on a target at IoU >= 0.5), frame 2 one, frame 3 one
     assert (r["detections"], r["detections_on_target"]) == (4, 1)
     # isolated visible: A and B in frame 1, A in frame 3; covered: A in frame 1
     assert (r["isolated"], r["isolated_covered"]) == (3, 1)
+    assert r["isolated_by_kind"] == {
+        "car": {"fragment": 1},
+        "person": {"covered": 1, "missed": 1},
+    }
     s = dq.summarise([{**r, "ms_per_frame": 2.0}])
+    assert s["isolated_by_kind"]["person"]["covered"] == 0.5
+    assert s["isolated_by_kind"]["car"]["target_frames"] == 1
+    assert "car covered 0.000 (fragment 1.000, missed 0.000; 1 target-frames)" in dq.table(s)
     assert s["shares"]["covered"] == 0.2 and s["precision"] == 0.25
     assert abs(sum(s["shares"].values()) - 1.0) < 1e-12
 

@@ -23,7 +23,8 @@ The scene's other moving objects (``gt.txt`` rows of confidence 0) are not targe
 holding a target and one of them is ``oversize`` with another object, and a detection of one
 alone is left out of the precision. Also printed: the precision of the detections (share at
 IoU >= 0.5 with a target's box in view) and the recall on isolated visible targets (visibility
->= 0.9, no other object's box touching theirs), the per-scene distribution of the coverage
+>= 0.9, no other object's box touching theirs), also by the target's kind (``scene.json``:
+person, cyclist, car), the per-scene distribution of the coverage
 (mean, 10th percentile, worst) and the detector's ms a frame, in wall time and in its own CPU time
 (its summary's: the wall time also holds what the run's reader and writer threads take). Usage::
 
@@ -132,6 +133,8 @@ def _detections(rois: Path, min_perimeter_px: float) -> dict[int, list[Box]]:
 def score_scene(scene: Path, rois: Path, min_perimeter_px: float, min_vis: float) -> dict:
     """Counts of the classes, precision's and isolated recall's numerators and denominators."""
     truth, dets = _truth(scene), _detections(rois, min_perimeter_px)
+    kinds = _kinds(scene)
+    by_kind: dict[str, Counter[str]] = {}
     counts: Counter[str] = Counter()
     n_det = n_det_ok = n_iso = n_iso_ok = 0
     for frame, rows in truth.items():
@@ -145,6 +148,7 @@ def score_scene(scene: Path, rois: Path, min_perimeter_px: float, min_vis: float
             if v >= 0.9 and not any(_inter(b, o) > 0 for o in others):
                 n_iso += 1
                 n_iso_ok += c == "covered"
+                by_kind.setdefault(kinds.get(i, "target"), Counter())[c] += 1
         # a detection of a distractor is neither right nor wrong (MOT's ignored rows)
         ignored = [b for _, b, _, t in shown if not t]
         ds = [d for d in ds if not any(_iou(d, b) >= 0.5 for b in ignored)]
@@ -159,7 +163,17 @@ def score_scene(scene: Path, rois: Path, min_perimeter_px: float, min_vis: float
         "detections_on_target": n_det_ok,
         "isolated": n_iso,
         "isolated_covered": n_iso_ok,
+        "isolated_by_kind": {k: dict(v) for k, v in sorted(by_kind.items())},
     }
+
+
+def _kinds(scene: Path) -> dict[int, str]:
+    """Target id -> its kind (person, cyclist, car) from the scene's ``scene.json``, if any."""
+    meta = scene / "scene.json"
+    if not meta.is_file():
+        return {}
+    targets = json.loads(meta.read_text()).get("params", {}).get("targets", [])
+    return {int(t["id"]): str(t["kind"]) for t in targets if "kind" in t and "id" in t}
 
 
 def _job(args: tuple[str, str, float, float, bool, tuple[str, ...]]) -> dict:
@@ -253,6 +267,10 @@ def summarise(results: list[dict]) -> dict:
     ]
     det = sum(r["detections"] for r in results)
     iso = sum(r["isolated"] for r in results)
+    kinds: dict[str, Counter[str]] = {}
+    for r in results:
+        for k, c in r.get("isolated_by_kind", {}).items():
+            kinds.setdefault(k, Counter()).update(c)
     ms = [r["ms_per_frame"] for r in results if r.get("ms_per_frame")]
     cpu = [r["ms_per_frame_cpu"] for r in results if r.get("ms_per_frame_cpu")]
     return {
@@ -265,6 +283,11 @@ def summarise(results: list[dict]) -> dict:
         "precision": sum(r["detections_on_target"] for r in results) / det if det else None,
         "isolated_recall": sum(r["isolated_covered"] for r in results) / iso if iso else None,
         "isolated_target_frames": iso,
+        "isolated_by_kind": {
+            k: {"target_frames": sum(c.values())}
+            | {cls: c.get(cls, 0) / sum(c.values()) for cls in CLASSES}
+            for k, c in sorted(kinds.items())
+        },
         "ms_per_frame_median": float(np.median(ms)) if ms else None,
         "ms_per_frame_cpu_median": float(np.median(cpu)) if cpu else None,
     }
@@ -294,6 +317,16 @@ def table(s: dict) -> str:
         f"{f(s['ms_per_frame_median'])} ms a frame, {f(s.get('ms_per_frame_cpu_median'))} ms of"
         " its own CPU time (medians over scenes)",
     ]
+    kinds = s.get("isolated_by_kind") or {}
+    if kinds:
+        lines.append(
+            "isolated visible targets by kind: "
+            + "; ".join(
+                f"{k} covered {f(v['covered'])} (fragment {f(v['fragment'])}, missed "
+                f"{f(v['missed'])}; {v['target_frames']} target-frames)"
+                for k, v in kinds.items()
+            )
+        )
     return "\n".join(lines)
 
 
