@@ -769,15 +769,14 @@ def grow(core: np.ndarray, weak: np.ndarray) -> np.ndarray:
     m, cores, stats, _ = components(core)
     if m <= 1:
         return core
-    n, comp, wstats, _ = components(weak | core)
     area = stats[1:, cv2.CC_STAT_AREA].astype(float)
-    # the weak component holding every core, read at one pixel of each: the first of its box's top
-    # row (every pixel of a core lies in one weak component)
-    owner = np.empty(m - 1, np.int64)
+    # one pixel of every core: the first of its box's top row (every pixel of a core lies in one
+    # weak component)
+    seeds = []
     for k in range(1, m):
         x, y, w = (int(v) for v in stats[k, :3])
-        j = int(np.argmax(cores[y, x : x + w] == k))
-        owner[k - 1] = comp[y, x + j]
+        seeds.append((x + int(np.argmax(cores[y, x : x + w] == k)), y))
+    n, comp, boxes, owner = _weak_components(weak | core, seeds)
     largest = np.zeros(n)
     np.maximum.at(largest, owner, area)
     bodies = np.zeros(n, int)
@@ -791,11 +790,41 @@ def grow(core: np.ndarray, weak: np.ndarray) -> np.ndarray:
     # (written inside each grown component's box only: the rest of the frame stays 0)
     extra = np.zeros(core.shape, np.uint8)
     for label in np.flatnonzero(grown):
-        x, y, w, h = (int(v) for v in wstats[label, :4])
+        x, y, w, h = boxes[label]
         box = (slice(y, y + h), slice(x, x + w))
         extra[box] |= ((comp[box] == label) & (core[box] == 0)).astype(np.uint8)
     extra = cv2.morphologyEx(extra, cv2.MORPH_OPEN, _ellipse(SKIRT_PX))
     return ((extra > 0) | (core > 0)).astype(np.uint8)
+
+
+def _weak_components(
+    mask: np.ndarray, seeds: list[tuple[int, int]]
+) -> tuple[int, np.ndarray, list[tuple[int, int, int, int]], np.ndarray]:
+    """The 8-connected components of ``mask`` (uint8 0/1) that hold the ``seeds`` (x, y), each
+    numbered once: (labels used + 1, a label image that is each such component's number on its
+    pixels, every label's box ``(x, y, w, h)`` (index 0 unused), every seed's label).
+
+    A flood fill from each seed not yet reached visits only the components that hold a core, not
+    the whole frame's (a 640 x 480 frame's labelling took about 1 ms); over 255 components it
+    labels the frame instead (the fill's labels are bytes).
+    """
+    owner = np.empty(len(seeds), np.int64)
+    if len(seeds) > 255:
+        n, comp, stats, _ = components(mask)
+        for k, (x, y) in enumerate(seeds):
+            owner[k] = comp[y, x]
+        boxes = [(int(v[0]), int(v[1]), int(v[2]), int(v[3])) for v in stats[:, :4]]
+        return n, comp, boxes, owner
+    filled = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), np.uint8)
+    lab = filled[1:-1, 1:-1]
+    boxes: list[tuple[int, int, int, int]] = [(0, 0, 0, 0)]
+    for k, (x, y) in enumerate(seeds):
+        if lab[y, x] == 0:
+            flags = 8 | cv2.FLOODFILL_MASK_ONLY | (len(boxes) << 8)
+            _, _, _, rect = cv2.floodFill(mask, filled, (x, y), 0, 0, 0, flags)
+            boxes.append(tuple(int(v) for v in rect))  # type: ignore[arg-type]
+        owner[k] = lab[y, x]
+    return len(boxes), lab, boxes, owner
 
 
 def _toward(est: np.ndarray, x: np.ndarray, fg: np.ndarray, step: float) -> np.ndarray:

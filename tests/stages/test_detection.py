@@ -388,6 +388,28 @@ def test_a_region_scores_its_contrast_over_the_background(excess):
     )
 
 
+@pytest.mark.parametrize("seeds", [3, 40, 300])
+def test_the_weak_components_filled_from_the_cores_are_the_labelled_ones(seeds):
+    """:func:`grow`'s flood fill from each core finds the same 8-connected components, pixel for
+    pixel and box for box, as labelling the whole frame; past 255 components it labels."""
+    from pipeline.stages._labels import components
+    from pipeline.stages.detection import _weak_components
+
+    rng = np.random.default_rng(seeds)
+    for _ in range(20):
+        mask = (rng.random((90, 130)) < 0.45).astype(np.uint8)
+        ys, xs = np.nonzero(mask)
+        pick = rng.choice(len(ys), size=min(seeds, len(ys)), replace=False)
+        pts = [(int(xs[i]), int(ys[i])) for i in pick]
+        n, lab, boxes, owner = _weak_components(mask, pts)
+        _, comp, stats, _ = components(mask)
+        assert len(set(owner.tolist())) == n - 1 or seeds > 255
+        for (x, y), o in zip(pts, owner, strict=True):
+            c = comp[y, x]
+            np.testing.assert_array_equal(lab == o, comp == c)
+            assert boxes[o] == tuple(int(v) for v in stats[c, :4])
+
+
 @pytest.mark.parametrize("grow_k,rows", [(1.5, (40, 100)), (0.0, (40, 70))])
 def test_a_walker_with_cold_legs_gets_a_whole_body_box(grow_k, rows):
     """A torso 30 grey levels warmer than the ground and legs only 9 warmer (under the
