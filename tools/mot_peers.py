@@ -84,13 +84,15 @@ def perfect_ids(
     """
     from scipy.optimize import linear_sum_assignment
 
+    from pipeline.eval.mot import box_ious
+
     rows, fresh = [], first_free
     for f in sorted(boxes):
         bs = boxes[f]
         ids = [g for g, b in truth.items() if f - 1 < len(b) and not np.isnan(b[f - 1]).any()]
         named: dict[int, int] = {}
         if bs and ids:
-            iou = np.array([[_iou(b, tuple(truth[g][f - 1])) for g in ids] for b in bs])
+            iou = box_ious(np.array(bs, float), np.array([truth[g][f - 1] for g in ids]))
             for i, j in zip(*linear_sum_assignment(-iou), strict=True):
                 if iou[i, j] >= 0.5:
                     named[int(i)] = ids[j]
@@ -99,13 +101,6 @@ def perfect_ids(
                 named[k], fresh = fresh, fresh + 1
             rows.append(f"{f},{named[k]},{x + 1:.2f},{y + 1:.2f},{w:.2f},{h:.2f},1,-1,-1,-1")
     return rows
-
-
-def _iou(a, b) -> float:
-    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
-    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
-    union = a[2] * a[3] + b[2] * b[3] - ix * iy
-    return ix * iy / union if union > 0 else 0.0
 
 
 def _boxes(mot_rows: list[str] | Path) -> dict[int, list[tuple[float, float, float, float]]]:
