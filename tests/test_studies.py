@@ -436,3 +436,47 @@ def test_failure_modes_tallies_a_run_by_target_group_and_rule(tmp_path):
     rows = fm.group_table(sf.rules, "decision", ("frames", "failed"))
     assert rows[0] == "| decision | frames | failed | share of failures |"
     assert len(rows) == 4 and all(" | 1.000 | " in r for r in rows[2:])
+
+
+def test_refusals_class_the_refused_detection_by_its_distance_to_the_truth():
+    """Three coasting frames of one target, the filter's detection 2, 12 and 40 px from the
+    truth's centre, one of them refused as on the background; a measured frame and a frame
+    without truth are not counted."""
+    from pipeline.trackers.dual.decide import Case, Rule
+    from pipeline.types import BBox, DecisionLabel, FrameResult, TargetResult, TargetStatus
+
+    ref = _tool("refusals")
+    truth = {1: np.array([[100.0, 50.0, 10.0, 20.0]] * 4 + [[np.nan] * 4])}  # centre 105, 60
+
+    def frame(n, case, rule, dx, psr):
+        label = DecisionLabel(case, rule, rule.text(reason="T2"))
+        r = TargetResult(
+            1,
+            BBox(100, 50, 10, 20),
+            TargetStatus.OCCLUDED_PARTIAL,
+            "kalman",
+            diagnostics={"psr": psr},
+            overlays={"appearance": BBox.from_center(105 + dx, 60, 10, 20)},
+            decision=label,
+        )
+        return FrameResult(n, (r,))
+
+    frames = [
+        frame(1, Case.COAST, Rule.PARTIAL_EVIDENCE, 2.0, 25.0),
+        frame(2, Case.COAST, Rule.ON_BACKGROUND, 12.0, 8.0),
+        frame(3, Case.COAST, Rule.SHARED, 40.0, 3.0),
+        frame(4, Case.APPEARANCE, Rule.APPEARANCE_OVER_CONTOUR, 40.0, 3.0),  # measured
+        frame(5, Case.COAST, Rule.PARTIAL_EVIDENCE, 0.0, 25.0),  # no truth
+    ]
+    counts = ref.tally(frames, truth)
+    assert counts == {
+        ("rule:partial-evidence", "on"): 1,
+        ("psr:>=20", "on"): 1,
+        ("rule:filter-on-background", "near"): 1,
+        ("psr:7-9", "near"): 1,
+        ("rule:measurement-taken-by-T", "off"): 1,
+        ("psr:0-7", "off"): 1,
+    }
+    lines = ref.table(counts)
+    assert lines[2].startswith("| rule:") and lines[-1] == "| psr:>=20 | 1 | 1 | 0 | 0 | 1.00 |"
+    assert [ln.split(" | ")[0] for ln in lines[5:]] == ["| psr:0-7", "| psr:7-9", "| psr:>=20"]
