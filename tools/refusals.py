@@ -103,6 +103,8 @@ def _one(args: tuple[str, tuple[str, ...]]) -> Counter:
     cfg = apply_overrides(PipelineConfig(), parse_set(list(sets))) if sets else None
     seq = open_sequence(path)
     truth = seq.truth.primary()
+    if not truth:
+        return Counter()
     return tally(track(seq, "dual", config=cfg), truth)
 
 
@@ -132,7 +134,9 @@ def main(argv: list[str] | None = None) -> int:
     if not a.root.is_dir():
         print(f"refusals: {a.root} is not a folder", file=sys.stderr)
         return 2
-    seqs = sorted(str(d) for d in a.root.iterdir() if d.is_dir())
+    from pipeline.io.sequence import sequence_layout
+
+    seqs = sorted(str(d) for d in a.root.iterdir() if sequence_layout(d) is not None)
     if not seqs:
         print(f"refusals: no sequence folder in {a.root}", file=sys.stderr)
         return 2
