@@ -474,7 +474,7 @@ def test_refusals_class_the_refused_detection_by_its_distance_to_the_truth():
         ("psr:>=20", "on"): 1,
         ("rule:filter-on-background", "near"): 1,
         ("psr:7-9", "near"): 1,
-        ("rule:measurement-taken-by-T", "off"): 1,
+        ("rule:measurement-taken-by", "off"): 1,
         ("psr:0-7", "off"): 1,
     }
     lines = ref.table(counts)

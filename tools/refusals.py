@@ -87,8 +87,7 @@ def tally(frames, truth: dict[int, np.ndarray]) -> Counter:
                 continue
             x, y, w, h = boxes[fr.frame - 1]
             cls = distance_class(math.hypot(app.cx - (x + w / 2), app.cy - (y + h / 2)))
-            rule = str(d).split(":", 1)[1]
-            rule = rule.rstrip("0123456789") if rule.startswith("measurement-taken-by-T") else rule
+            rule = d.rule.value.split("{", 1)[0].rstrip("-")  # the rule, without its details
             out[(f"rule:{rule}", cls)] += 1
             out[(f"psr:{psr_band(float(r.diagnostics.get('psr', math.nan)))}", cls)] += 1
     return out
