@@ -470,6 +470,13 @@ def test_every_rule_of_the_tables_is_reached():
         evidence(psr=3.0, contour_ok=False, contour_reason="low-contrast", rho_meanshift=0.8),
         missing(appearance_box=at(250), psr=12.0, rho_appearance=0.8, redetected=True),
         missing(appearance_box=at(104), psr=12.0, rho_appearance=0.8),
+        missing(
+            appearance_box=at(200),
+            psr=15.0,
+            rho_appearance=0.3,
+            meanshift_box=at(201),
+            rho_meanshift=0.3,
+        ),
         missing(contour_box=at(103), contour_ok=True, contour_reason="ok", rho_contour=0.8),
         missing(meanshift_box=at(102), rho_meanshift=0.9),
     ]
@@ -523,3 +530,67 @@ def test_the_background_is_asked_only_where_nothing_else_confirms_the_filter():
     assert not needs_background(
         evidence(**alone, rho_appearance=0.1), CFG.__class__(background_share=0.0)
     )
+
+
+def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction():
+    """A fast target that turned while it coasted: the filter finds it 60 px from its prediction
+    at PSR 20, confident in both channels (15 and 11), and the mean shift converged there too,
+    though the colour matches at 0.3 only (a shadow dimmed it). Neither the prediction, the
+    reach of its speed nor the colour's ``reacquire_rho`` takes it back; the agreement does
+    (``APPEARANCE_AND_COLOUR``). Each of the other tests refuses it alone: the mean shift
+    elsewhere, one channel's peak under ``psr_reacquire`` (a cold look-alike), another target's
+    box on it, another target's colour model matching there better than its own, a box that is
+    the still background, a PSR under ``corroborate_psr``, the rule off."""
+    ev = missing(
+        2,
+        appearance_box=at(160),
+        psr=20.0,
+        rho_appearance=0.3,
+        support=(15.0, 11.0),
+        meanshift_box=at(162),
+        rho_meanshift=0.32,
+        seen=(100.0, 100.0),
+        seen_frames=2,
+        speed_px=3.0,
+    )
+    d = decide(ev, BG)
+    assert (d.case, d.rule, d.box, d.status) == (
+        Case.REACQUIRED,
+        Rule.APPEARANCE_AND_COLOUR,
+        at(160),
+        TargetStatus.TRACKING,
+    )
+    assert d.text == "re-acquired:appearance-and-colour" and not d.learn
+    for change in (
+        dict(meanshift_box=at(100)),
+        dict(support=(15.0, 2.0)),
+        dict(on_another=True),
+        dict(rho_rival=0.5),
+        dict(foreground_share=0.01),
+        dict(psr=11.0),
+    ):
+        assert decide(dataclasses.replace(ev, **change), BG).case == Case.COAST, change
+    assert decide(ev, dataclasses.replace(BG, corroborate_psr=0.0)).case == Case.COAST
+    # one channel only (visible-only or infrared-only): its one peak decides
+    assert decide(dataclasses.replace(ev, support=(15.0, NAN)), BG).case == Case.REACQUIRED
+    # a still background unknown (a moving camera): nothing is refused for it
+    assert decide(dataclasses.replace(ev, foreground_share=NAN), BG).case == Case.REACQUIRED
+    # a tracked target keeps its reach: the rule is for a missing one
+    tracked = dataclasses.replace(ev, measured_last=True, missing=0, last=at(100))
+    assert decide(tracked, BG).rule != Rule.APPEARANCE_AND_COLOUR
+
+
+def test_a_corroborated_find_is_asked_whether_it_is_the_background_whatever_its_colour():
+    from pipeline.trackers.dual.decide import needs_background
+
+    ev = missing(
+        2,
+        appearance_box=at(160),
+        psr=20.0,
+        rho_appearance=0.9,
+        support=(15.0, 11.0),
+        meanshift_box=at(162),
+        rho_meanshift=0.9,
+    )
+    assert needs_background(ev, BG)
+    assert not needs_background(dataclasses.replace(ev, meanshift_box=at(100)), BG)

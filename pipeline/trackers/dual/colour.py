@@ -187,14 +187,14 @@ class ColourCue:
                     ms = ms2
         return ms, iters
 
-    def match_at(self, cs: ColourStep, box: BBox | None) -> float:
-        """Bhattacharyya coefficient of the model and the kernel histogram inside ``box`` (frame
-        px); NaN where the colour is not seen, without a box, or when too little of the kernel
-        lies in the search region."""
+    def match_at(self, cs: ColourStep, box: BBox | None, model: np.ndarray | None = None) -> float:
+        """Bhattacharyya coefficient of the target's model (or ``model``, another target's) and
+        the kernel histogram inside ``box`` (frame px); NaN where the colour is not seen, without
+        a box, or when too little of the kernel lies in the search region."""
         if box is None or not cs.usable:
             return float("nan")
         assert cs.bins is not None
-        q = cs.t.q
+        q = cs.t.q if model is None else model
         p, n, mass = ellipse_model(
             cs.bins, box.cx - cs.roi0[0], box.cy - cs.roi0[1], box.w / 2, box.h / 2, q.size
         )

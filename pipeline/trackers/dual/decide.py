@@ -35,6 +35,10 @@ Missing (hidden or lost; :data:`MISSING`)
        match (where colour is seen) at ``reacquire_rho``; a find away from the prediction
        yields where the mean shift near the prediction matches the colour better
        (``redetect_local_margin``);
+    7b. ``APPEARANCE_AND_COLOUR``: a filter detection at ``corroborate_psr`` anywhere, where
+       the colour's own search found the target too, each channel's filter peak reaches
+       ``psr_reacquire``, no other target's box overlaps it and it differs from a still
+       camera's background (:func:`corroborated`; two cues that agree outvote the motion);
     8. ``CONTOUR_NEAR_PREDICTION``: a clean contour near the prediction whose colour agrees (or
        no colour to ask);
     9. ``COLOUR_NEAR_PREDICTION``: a colour match at ``reacquire_rho`` near the prediction;
@@ -72,6 +76,7 @@ __all__ = [
     "Rule",
     "View",
     "agree",
+    "corroborated",
     "needs_background",
 ]
 
@@ -106,6 +111,7 @@ class Rule(enum.StrEnum):
     COLOUR_IR_FADED = "colour-ir-faded"
     REDETECTED = "redetected"
     APPEARANCE_NEAR_PREDICTION = "appearance-near-prediction"
+    APPEARANCE_AND_COLOUR = "appearance-and-colour"
     CONTOUR_NEAR_PREDICTION = "contour-near-prediction"
     COLOUR_NEAR_PREDICTION = "colour-near-prediction"
     PARTIAL_EVIDENCE = "partial-evidence"
@@ -163,6 +169,8 @@ class Evidence:
     speed_px: float = 0.0  # its recent speed over its clean measurements, px per frame
     seen: tuple[float, float] | None = None  # centre of its last clean measurement
     seen_frames: int = 0  # frames since that measurement
+    on_another: bool = False  # the filter's box overlaps another target's box this frame
+    rho_rival: float = float("nan")  # the best other target's colour match at the filter's box
 
     @property
     def ref_area(self) -> float:
@@ -276,19 +284,60 @@ def needs_background(ev: Evidence, cfg: DeciderConfig) -> bool:
     """Whether the background test could refuse this frame's filter detection: a confident one
     (``psr_confident``) that neither its colour (``colour_min_rho``) nor a checked contour where
     it is (a contrasted IR blob there) confirms. Only then is the share of its box that differs
-    from the background computed (the sequence's background costs seconds on large frames)."""
+    from the background computed (the sequence's background costs seconds on large frames).
+    A detection that :func:`corroborated` could take a missing target back with is asked too,
+    whatever its colour, unless a contour confirms it."""
     if (
         cfg.background_share <= 0
         or ev.appearance_box is None
         or not _good(ev.psr, cfg.psr_confident)
     ):
         return False
-    if ev.colour_informative and _good(ev.rho_appearance, cfg.colour_min_rho):
-        return False
     on_contour = _clean(ev) and agree(
         ev.contour_box, ev.appearance_box, ev.ref_size, cfg.agree_fraction
     )
-    return not on_contour
+    if on_contour:
+        return False
+    if corroborated(ev, cfg):
+        return True
+    return not (ev.colour_informative and _good(ev.rho_appearance, cfg.colour_min_rho))
+
+
+def corroborated(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """Whether the other cues confirm the filter's detection of a missing target, so that it
+    may take the target back far from its prediction (``corroborate_psr``): a peak of that
+    PSR, at ``psr_reacquire`` in each channel that has one, where the mean shift (the
+    colour's own search) converged too, on no other target's box, and that no other target's
+    colour model matches better than its own (``rho_rival``). The background test is
+    :attr:`View.corroborated`'s.
+
+    Examples
+    --------
+    >>> from pipeline.tracker_config import DeciderConfig
+    >>> at = lambda cx: BBox.from_center(cx, 100, 12, 24)
+    >>> ev = Evidence(measured_last=False, missing=2, prior=at(100), ref_size=(12, 24),
+    ...               colour_informative=True, rho_meanshift=0.3, meanshift_box=at(141),
+    ...               contour_box=None, contour_ok=False, contour_reason="no-component",
+    ...               rho_contour=float("nan"), appearance_box=at(140), psr=20.0,
+    ...               rho_appearance=0.3, support=(15.0, 11.0))
+    >>> corroborated(ev, DeciderConfig())
+    True
+    >>> import dataclasses
+    >>> corroborated(dataclasses.replace(ev, support=(15.0, 2.0)), DeciderConfig())
+    False
+    """
+    return (
+        cfg.corroborate_psr > 0
+        and not ev.measured_last
+        and ev.colour_informative
+        and ev.meanshift_box is not None
+        and ev.appearance_box is not None
+        and _good(ev.psr, cfg.corroborate_psr)
+        and agree(ev.appearance_box, ev.meanshift_box, ev.ref_size, cfg.agree_fraction)
+        and all(math.isnan(p) or p >= cfg.psr_reacquire for p in ev.support)
+        and not ev.on_another
+        and not ev.rho_rival > ev.rho_appearance
+    )
 
 
 def _on_background(ev: Evidence, cfg: DeciderConfig) -> bool:
@@ -484,6 +533,17 @@ class View:
             self.near_prior(ev.appearance_box)
             or (ev.redetected and colour_agrees)
             or self.reached(ev.appearance_box)
+        )
+
+    @property
+    def corroborated(self) -> bool:
+        """The filter's detection is :func:`corroborated` and its box differs from a still
+        camera's background in at least ``background_share`` of its pixels, whatever its
+        colour (a background structure that matches the target's colours and gradients stays
+        where it is); where no background is known, nothing is refused for it."""
+        ev, cfg = self.ev, self.cfg
+        return corroborated(ev, cfg) and not (
+            cfg.background_share > 0 and ev.foreground_share < cfg.background_share
         )
 
     def local_better(self, box: BBox | None, rho_at: float) -> bool:
@@ -695,6 +755,11 @@ MISSING: tuple[RuleSpec, ...] = (
         Rule.APPEARANCE_NEAR_PREDICTION,
         lambda v: v.reacquirable,
         lambda v: _reacquired_by_filter(v, Rule.APPEARANCE_NEAR_PREDICTION),
+    ),
+    (
+        Rule.APPEARANCE_AND_COLOUR,
+        lambda v: v.appearance and _good(v.ev.psr, v.cfg.psr_reacquire) and v.corroborated,
+        lambda v: _reacquired_by_filter(v, Rule.APPEARANCE_AND_COLOUR),
     ),
     (
         Rule.CONTOUR_NEAR_PREDICTION,

@@ -12,6 +12,9 @@ from pipeline.trackers.dual.decide import Case, Decision, Rule
 from pipeline.trackers.dual.state import DualTarget, History
 from pipeline.types import BBox, TargetStatus
 
+_FOUND_AWAY = (Rule.REDETECTED, Rule.APPEARANCE_AND_COLOUR)
+"""The rules that take a missing target back away from where it was believed to be."""
+
 
 @dataclass(frozen=True)
 class Motion:
@@ -68,17 +71,19 @@ class Motion:
         frame: int,
     ) -> tuple[kalman.GaussianState, History, BBox]:
         """The state after this frame: corrected by the measurement (its noise scaled per
-        rule), restarted at rest on a target found again after it was lost or by the widened
-        search, or coasting (restarted at an occlusion's onset from a line through the recent
-        clean measurements, stopped once lost). Returns the state, the clean-measurement history
-        and the output box (moved to the restarted coast)."""
+        rule), restarted at rest on a target found again after it was lost, by the widened
+        search or far from its prediction (``APPEARANCE_AND_COLOUR``), or coasting (restarted
+        at an occlusion's onset from a line through the recent clean measurements, stopped
+        once lost). Returns the state, the clean-measurement history and the output box (moved
+        to the restarted coast)."""
         if (
             decision.measured
             and decision.case == Case.REACQUIRED
-            and (t.status == TargetStatus.LOST or decision.rule == Rule.REDETECTED)
+            and (t.status == TargetStatus.LOST or decision.rule in _FOUND_AWAY)
         ):
-            # found again after it was given up, or by the widened search: the jump from where it
-            # was believed to be is not its motion; the filter restarts at the measurement, at rest
+            # found again after it was given up, by the widened search or far from its
+            # prediction: the jump from where it was believed to be is not its motion; the
+            # filter restarts at the measurement, at rest
             return self.start(out), ((float(frame), out.cx, out.cy, out.w, out.h),), out
         if decision.measured:
             kf = self.correct(prior, out, max(decision.noise, 1e-6))

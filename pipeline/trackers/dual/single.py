@@ -9,6 +9,8 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from pipeline.io.sequence import FramePair
 from pipeline.stages import detection
 from pipeline.stages.appearance import AppearanceModel, Detection
@@ -56,17 +58,24 @@ def measure(
     timing: dict[str, float],
     start: tuple[float, float] | None = None,
     background: BackgroundSource = None,
+    others: tuple[tuple[BBox, np.ndarray], ...] = (),
 ) -> Measured:
     """The cues of one target (filter, IR contour, colour at each) and the decision over them.
 
     ``start`` forces a cold contour start there (a blob after a split); ``background`` is the
-    detector's, for the whole-frame search."""
+    detector's, for the whole-frame search; ``others`` are the other targets' boxes this frame
+    and their colour models (a filter detection on one of their boxes, or that one of their
+    models matches better, is not :func:`~pipeline.trackers.dual.decide.corroborated`)."""
     cue = _filter(dual, frames, cs, mode, timing, background)
     c = _contour(dual, frames, cs, cue, mode, timing, start)
     usable = c if dual.contour.usable(c) else None
     rho_c = dual.colour.match_at(cs, usable.box if usable is not None else None)
     rho_a = dual.colour.match_at(cs, cue.box if cue is not None else None)
     ev = evidence(dual, frames, cs, cue, usable, c, (rho_c, rho_a), mode, start)
+    if cue is not None and others and ev.missing > 0:
+        rival = max(dual.colour.match_at(cs, cue.box, q) for _, q in others)
+        on_another = any(cue.box.iou(b) > 0 for b, _ in others)
+        ev = dataclasses.replace(ev, on_another=on_another, rho_rival=rival)
     if cue is not None and needs_background(ev, dual.decider.cfg):
         ev = dataclasses.replace(
             ev, foreground_share=_foreground_share(frames, cue.box, background)

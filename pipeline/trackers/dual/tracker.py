@@ -9,6 +9,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
+
 from pipeline.io.sequence import FramePair
 from pipeline.stages import appearance as app_stage
 from pipeline.stages import contour as contour_stage
@@ -244,7 +246,13 @@ class Dual:
             groups = self.groups.groups(steps, live, frames.index)
         done, memories = self._groups(frames, groups, steps, state, timing)
         alone = {
-            i: self._measure_alone(frames, cs, state, timing)
+            i: self._measure_alone(
+                frames,
+                cs,
+                state,
+                timing,
+                tuple((b, steps[j].t.q) for j, b in live.items() if j != i),
+            )
             for i, cs in steps.items()
             if i not in done
         }
@@ -297,14 +305,19 @@ class Dual:
         cs: ColourStep,
         state: DualState,
         timing: dict[str, float],
+        others: tuple[tuple[BBox, np.ndarray], ...] = (),
     ) -> single.Measured:
-        """The cues and decision of a target in no group this frame; one whose group dissolved
-        without a visible split starts again from its prediction (its move out of ``merged`` is
-        the lifecycle's ``split`` event, with the decision that took it)."""
+        """The cues and decision of a target in no group this frame (``others``: the other
+        targets' boxes, :func:`~pipeline.trackers.dual.group.live_boxes`, and colour models);
+        one whose group dissolved without a visible split starts again from its prediction (its
+        move out of ``merged`` is the lifecycle's ``split`` event, with the decision that took
+        it)."""
         start = None
         if cs.t.status == TargetStatus.MERGED and cs.t.case == Case.MERGED.value:
             start = cs.box_prior.center
-        return single.measure(self, frames, cs, state.mode, timing, start, state.background)
+        return single.measure(
+            self, frames, cs, state.mode, timing, start, state.background, others
+        )
 
     def _one_object_one_target(
         self, alone: dict[int, single.Measured]
