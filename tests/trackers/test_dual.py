@@ -86,8 +86,10 @@ TURN_PARTS_OFF = [
     "dual.decider.reach_missing=false",
     "dual.decider.jump_speed=0",
     "dual.motion.rewind_tolerance=0",
+    "dual.decider.corroborate_psr=0",
 ]
-"""The parts that look where a turn takes a target, off: the motion prediction alone."""
+"""The parts that look where a turn takes a target, or take it back where the filter and the
+colour agree on it, off: the motion prediction alone."""
 
 
 def _p20(d, out, sets, target=None):
@@ -182,17 +184,20 @@ def test_a_target_walking_to_and_fro_is_followed_through_its_turns(tmp_path):
     (P@20 0.983-1.000 and 0-2 coasting frames under level-set step moves of +-1e-7 and +-2e-7
     relative); without the filter's search behind the last measurement (``turn_search``) it
     coasts through the turns (P@20 0.563, 53 coasting frames), and likewise with a reach that
-    does not grow with its speed (0.664, 40). The reach kept while missing and the coast not
-    restarted on the line before a turn have their own tests (``reach_missing`` in
-    ``test_dual_decide.py``, ``rewind_tolerance`` below)."""
+    does not grow with its speed (0.664, 40), each without the filter and colour's agreement
+    (``corroborate_psr``), which takes it back after such a turn (the reach not growing: 0.849).
+    The reach kept while missing and the coast not restarted on the line before a turn have
+    their own tests (``reach_missing`` in ``test_dual_decide.py``, ``rewind_tolerance``
+    below)."""
     from pipeline.synthetic import synthesize
 
     xs = (60, 200, 90, 260, 110, 230, 70, 250, 100)
     d = synthesize(_runner(10.0, 26.0, xs), tmp_path / "s", seed=0, progress=False)
     variants = {
         "all": [],
-        "turns": ["dual.decider.turn_search=false"],
-        "reach-speed": ["dual.decider.jump_speed=0"],
+        "turns": ["dual.decider.turn_search=false", "dual.decider.corroborate_psr=0"],
+        "reach-speed": ["dual.decider.jump_speed=0", "dual.decider.corroborate_psr=0"],
+        "agreement": ["dual.decider.jump_speed=0"],
     }
     p20, coast = {}, {}
     for name, sets in variants.items():
@@ -201,6 +206,7 @@ def test_a_target_walking_to_and_fro_is_followed_through_its_turns(tmp_path):
         coast[name] = sum(r["decision"].startswith(("coast", "lost")) for r in rows)
     assert p20["all"] >= 0.95 and coast["all"] <= 5, (p20, coast)
     assert p20["turns"] <= 0.7 and p20["reach-speed"] <= 0.75, p20
+    assert p20["agreement"] >= p20["reach-speed"] + 0.05, p20
 
 
 def test_a_confident_peak_on_what_hid_the_target_does_not_stop_its_search(tmp_path):

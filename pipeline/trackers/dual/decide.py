@@ -329,14 +329,20 @@ def corroborated(ev: Evidence, cfg: DeciderConfig) -> bool:
     return (
         cfg.corroborate_psr > 0
         and not ev.measured_last
-        and ev.colour_informative
+        and _good(ev.psr, cfg.corroborate_psr)
+        and all(math.isnan(p) or p >= cfg.psr_reacquire for p in ev.support)
+        and _colour_on_filter(ev, cfg)
+        and not (ev.on_another or ev.rho_rival > ev.rho_appearance)
+    )
+
+
+def _colour_on_filter(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """The mean shift converged where the filter's detection is (``agree_fraction``)."""
+    return (
+        ev.colour_informative
         and ev.meanshift_box is not None
         and ev.appearance_box is not None
-        and _good(ev.psr, cfg.corroborate_psr)
         and agree(ev.appearance_box, ev.meanshift_box, ev.ref_size, cfg.agree_fraction)
-        and all(math.isnan(p) or p >= cfg.psr_reacquire for p in ev.support)
-        and not ev.on_another
-        and not ev.rho_rival > ev.rho_appearance
     )
 
 

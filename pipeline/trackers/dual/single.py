@@ -72,10 +72,7 @@ def measure(
     rho_c = dual.colour.match_at(cs, usable.box if usable is not None else None)
     rho_a = dual.colour.match_at(cs, cue.box if cue is not None else None)
     ev = evidence(dual, frames, cs, cue, usable, c, (rho_c, rho_a), mode, start)
-    if cue is not None and others and ev.missing > 0:
-        rival = max(dual.colour.match_at(cs, cue.box, q) for _, q in others)
-        on_another = any(cue.box.iou(b) > 0 for b, _ in others)
-        ev = dataclasses.replace(ev, on_another=on_another, rho_rival=rival)
+    ev = _against_others(dual, cs, cue, ev, others)
     if cue is not None and needs_background(ev, dual.decider.cfg):
         ev = dataclasses.replace(
             ev, foreground_share=_foreground_share(frames, cue.box, background)
@@ -84,6 +81,23 @@ def measure(
     if start is not None and not d.measured and c is not None and c.box is not None:
         d = dual.decider.split_blob(c.box)  # the blob a split re-associated it with
     return Measured(cs, cue, c, rho_c, rho_a, ev, d, start)
+
+
+def _against_others(
+    dual: Dual,
+    cs: ColourStep,
+    cue: FilterCue | None,
+    ev: Evidence,
+    others: tuple[tuple[BBox, np.ndarray], ...],
+) -> Evidence:
+    """``ev`` with the filter's detection of a missing target read against the other targets
+    (``others``: their boxes this frame and colour models): whether it overlaps one's box, and
+    the best of their colour matches there."""
+    if cue is None or not others or ev.missing == 0:
+        return ev
+    rival = max(dual.colour.match_at(cs, cue.box, q) for _, q in others)
+    on_another = any(cue.box.iou(b) > 0 for b, _ in others)
+    return dataclasses.replace(ev, on_another=on_another, rho_rival=rival)
 
 
 def _filter(

@@ -45,6 +45,16 @@ from pipeline.types import (
 )
 
 Done = tuple[DualTarget, TargetResult, list[Event]]
+
+
+def _rivals(
+    i: int, live: dict[int, BBox], steps: dict[int, ColourStep]
+) -> tuple[tuple[BBox, np.ndarray], ...]:
+    """Every other target's box this frame (``live``) and colour model, as target ``i``'s
+    measurement is checked against them."""
+    return tuple((b, steps[j].t.q) for j, b in live.items() if j != i)
+
+
 """A target's new state, its result and its events this frame."""
 
 
@@ -246,13 +256,7 @@ class Dual:
             groups = self.groups.groups(steps, live, frames.index)
         done, memories = self._groups(frames, groups, steps, state, timing)
         alone = {
-            i: self._measure_alone(
-                frames,
-                cs,
-                state,
-                timing,
-                tuple((b, steps[j].t.q) for j, b in live.items() if j != i),
-            )
+            i: self._measure_alone(frames, cs, state, timing, _rivals(i, live, steps))
             for i, cs in steps.items()
             if i not in done
         }
