@@ -532,6 +532,22 @@ def test_the_background_is_asked_only_where_nothing_else_confirms_the_filter():
     )
 
 
+def far_find(**kw) -> Evidence:
+    """A target missing for 2 frames that its filter finds 60 px from its prediction at PSR 20
+    (15 and 11 in the two channels), where the mean shift converged too (colour match 0.3);
+    ``kw`` changes what a cue found."""
+    base = dict(
+        appearance_box=at(160),
+        psr=20.0,
+        rho_appearance=0.3,
+        support=(15.0, 11.0),
+        meanshift_box=at(162),
+        rho_meanshift=0.32,
+    )
+    base.update(kw)
+    return missing(2, **base)
+
+
 def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction():
     """A fast target that turned while it coasted: the filter finds it 60 px from its prediction
     at PSR 20, confident in both channels (15 and 11), and the mean shift converged there too,
@@ -541,18 +557,7 @@ def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction(
     elsewhere, one channel's peak under ``psr_reacquire`` (a cold look-alike), another target's
     box on it, another target's colour model matching there better than its own, a box that is
     the still background, a PSR under ``corroborate_psr``, the rule off."""
-    ev = missing(
-        2,
-        appearance_box=at(160),
-        psr=20.0,
-        rho_appearance=0.3,
-        support=(15.0, 11.0),
-        meanshift_box=at(162),
-        rho_meanshift=0.32,
-        seen=(100.0, 100.0),
-        seen_frames=2,
-        speed_px=3.0,
-    )
+    ev = far_find(seen=(100.0, 100.0), seen_frames=2, speed_px=3.0)
     d = decide(ev, BG)
     assert (d.case, d.rule, d.box, d.status) == (
         Case.REACQUIRED,
@@ -581,16 +586,11 @@ def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction(
 
 
 def test_a_corroborated_find_is_asked_whether_it_is_the_background_whatever_its_colour():
+    """A far find that the colour matches at 0.9 would skip the background test as any filter
+    detection the colour confirms; one that the agreement could take back is asked (a background
+    structure in the target's colours), unless the mean shift is elsewhere."""
     from pipeline.trackers.dual.decide import needs_background
 
-    ev = missing(
-        2,
-        appearance_box=at(160),
-        psr=20.0,
-        rho_appearance=0.9,
-        support=(15.0, 11.0),
-        meanshift_box=at(162),
-        rho_meanshift=0.9,
-    )
+    ev = far_find(rho_appearance=0.9, rho_meanshift=0.9)
     assert needs_background(ev, BG)
     assert not needs_background(dataclasses.replace(ev, meanshift_box=at(100)), BG)
