@@ -310,9 +310,11 @@ class DeciderConfig(Section):
         whose peak reaches ``psr_reacquire`` in each channel the filter reads, that overlaps no
         other target's box, where no other target's colour model matches better than its own,
         and that differs from a still camera's background (``background_share``;
-        ``Rule.APPEARANCE_AND_COLOUR``), >= 0; default 12 (0: off). Two cues that agree
-        outvote the motion: a fast target that turned while it coasted, or whose colour a
-        shadow dimmed under ``reacquire_rho``, is taken back where both find it. A cold
+        ``Rule.APPEARANCE_AND_COLOUR``), >= 0; default 12 (0: off). With one channel it needs
+        that background (infrared alone, a still camera): on visible footage alone it never
+        applies, since a look-alike fools the colour and the gradients of one image. Two cues
+        that agree outvote the motion: a fast target that turned while it coasted, or whose
+        colour a shadow dimmed under ``reacquire_rho``, is taken back where both find it. A cold
         look-alike has no infrared peak and a background structure does not differ from the
         background; another person of like colours and heat is taken (development range:
         24 of 25 such finds within 20 px of the target with one target, 9 of 11 with 2-3,

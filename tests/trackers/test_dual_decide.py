@@ -556,7 +556,9 @@ def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction(
     (``APPEARANCE_AND_COLOUR``). Each of the other tests refuses it alone: the mean shift
     elsewhere, one channel's peak under ``psr_reacquire`` (a cold look-alike), another target's
     box on it, another target's colour model matching there better than its own, a box that is
-    the still background, a PSR under ``corroborate_psr``, the rule off."""
+    the still background, a PSR under ``corroborate_psr``, the rule off; with one channel, no
+    still background to ask (visible footage alone, where a look-alike fools the colour and the
+    gradients of the one image)."""
     ev = far_find(seen=(100.0, 100.0), seen_frames=2, speed_px=3.0)
     d = decide(ev, BG)
     assert (d.case, d.rule, d.box, d.status) == (
@@ -576,9 +578,11 @@ def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction(
     ):
         assert decide(dataclasses.replace(ev, **change), BG).case == Case.COAST, change
     assert decide(ev, dataclasses.replace(BG, corroborate_psr=0.0)).case == Case.COAST
-    # one channel only (visible-only or infrared-only): its one peak decides
-    assert decide(dataclasses.replace(ev, support=(15.0, NAN)), BG).case == Case.REACQUIRED
-    # a still background unknown (a moving camera): nothing is refused for it
+    # one channel (infrared alone): the still background is the second check
+    one = dataclasses.replace(ev, support=(NAN, 15.0), foreground_share=0.4)
+    assert decide(one, BG).case == Case.REACQUIRED
+    assert decide(dataclasses.replace(one, foreground_share=NAN), BG).case == Case.COAST
+    # both channels and no still background known (a moving camera): the channels suffice
     assert decide(dataclasses.replace(ev, foreground_share=NAN), BG).case == Case.REACQUIRED
     # a tracked target keeps its reach: the rule is for a missing one
     tracked = dataclasses.replace(ev, measured_last=True, missing=0, last=at(100))
