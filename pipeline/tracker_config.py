@@ -311,8 +311,9 @@ class DeciderConfig(Section):
         other target's box, where no other target's colour model matches better than its own,
         and that differs from a still camera's background (``background_share``;
         ``Rule.APPEARANCE_AND_COLOUR``), >= 0; default 12 (0: off). With one channel it needs
-        that background (infrared alone, a still camera): on visible footage alone it never
-        applies, since a look-alike fools the colour and the gradients of one image. Two cues
+        that background's test or a clean contour on the find (infrared alone): on visible
+        footage alone it never applies, since a look-alike fools the colour and the gradients
+        of one image. Two cues
         that agree outvote the motion: a fast target that turned while it coasted, or whose
         colour a shadow dimmed under ``reacquire_rho``, is taken back where both find it. A cold
         look-alike has no infrared peak and a background structure does not differ from the

@@ -557,8 +557,8 @@ def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction(
     elsewhere, one channel's peak under ``psr_reacquire`` (a cold look-alike), another target's
     box on it, another target's colour model matching there better than its own, a box that is
     the still background, a PSR under ``corroborate_psr``, the rule off; with one channel, no
-    still background to ask (visible footage alone, where a look-alike fools the colour and the
-    gradients of the one image)."""
+    still background to ask and no contour on the find (visible footage alone, where a look-alike
+    fools the colour and the gradients of the one image)."""
     ev = far_find(seen=(100.0, 100.0), seen_frames=2, speed_px=3.0)
     d = decide(ev, BG)
     assert (d.case, d.rule, d.box, d.status) == (
@@ -582,6 +582,11 @@ def test_two_cues_that_agree_take_a_missing_target_back_far_from_its_prediction(
     one = dataclasses.replace(ev, support=(NAN, 15.0), foreground_share=0.4)
     assert decide(one, BG).case == Case.REACQUIRED
     assert decide(dataclasses.replace(one, foreground_share=NAN), BG).case == Case.COAST
+    # or a clean contour on the find (the background is not asked there)
+    shaped = dataclasses.replace(
+        one, foreground_share=NAN, contour_box=at(161), contour_ok=True, contour_reason="ok"
+    )
+    assert decide(shaped, BG).case == Case.REACQUIRED
     # both channels and no still background known (a moving camera): the channels suffice
     assert decide(dataclasses.replace(ev, foreground_share=NAN), BG).case == Case.REACQUIRED
     # a tracked target keeps its reach: the rule is for a missing one

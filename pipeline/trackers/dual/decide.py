@@ -547,16 +547,16 @@ class View:
         camera's background in at least ``background_share`` of its pixels, whatever its
         colour (a background structure that matches the target's colours and gradients stays
         where it is). A second, independent check is needed: the filter's peak in both
-        channels, or that background test. With one channel and no background known (visible
-        footage alone) the colour and the gradients of one image are not enough: a look-alike
-        fools both."""
+        channels, that background test, or a clean contour on the find. With one channel and
+        neither (visible footage alone) the colour and the gradients of one image are not
+        enough: a look-alike fools both."""
         ev, cfg = self.ev, self.cfg
         if not corroborated(ev, cfg):
             return False
         share, fg = cfg.background_share, ev.foreground_share
         both = not any(math.isnan(p) for p in ev.support)
         tested = share > 0 and not math.isnan(fg)
-        return (both or tested) and not (tested and fg < share)
+        return (both or tested or self.contour_on_filter) and not (tested and fg < share)
 
     def local_better(self, box: BBox | None, rho_at: float) -> bool:
         """``box`` lies away from the prediction, and the mean shift near the prediction
