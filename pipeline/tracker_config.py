@@ -313,13 +313,12 @@ class DeciderConfig(Section):
         ``Rule.APPEARANCE_AND_COLOUR``), >= 0; default 12 (0: off). With one channel it needs
         that background's test or a clean contour on the find (infrared alone): on visible
         footage alone it never applies, since a look-alike fools the colour and the gradients
-        of one image. Two cues
-        that agree outvote the motion: a fast target that turned while it coasted, or whose
-        colour a shadow dimmed under ``reacquire_rho``, is taken back where both find it. A cold
-        look-alike has no infrared peak and a background structure does not differ from the
-        background; another person of like colours and heat is taken (development range:
-        24 of 25 such finds within 20 px of the target with one target, 9 of 11 with 2-3,
-        the other two on another target or a passer-by).
+        of one image. Two cues that agree outvote the motion: a fast target that turned while
+        it coasted, or whose colour a shadow dimmed under ``reacquire_rho``, is taken back where
+        both find it. A cold look-alike has no infrared peak and a background structure does
+        not differ from the background; another person of like colours and heat is taken
+        (development range: 24 of 25 such finds within 20 px of the target with one target, 9
+        of 11 with 2-3, the other two on another target or a passer-by).
     """
 
     section = "decider"

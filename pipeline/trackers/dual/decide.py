@@ -37,8 +37,9 @@ Missing (hidden or lost; :data:`MISSING`)
        (``redetect_local_margin``);
     7b. ``APPEARANCE_AND_COLOUR``: a filter detection at ``corroborate_psr`` anywhere, where
        the colour's own search found the target too, each channel's filter peak reaches
-       ``psr_reacquire``, no other target's box overlaps it and it differs from a still
-       camera's background (:func:`corroborated`; two cues that agree outvote the motion);
+       ``psr_reacquire``, no other target's box overlaps it nor its colour model matches better,
+       and it differs from a still camera's background (with one channel, that test or a clean
+       contour must confirm it; :func:`corroborated`; two cues that agree outvote the motion);
     8. ``CONTOUR_NEAR_PREDICTION``: a clean contour near the prediction whose colour agrees (or
        no colour to ask);
     9. ``COLOUR_NEAR_PREDICTION``: a colour match at ``reacquire_rho`` near the prediction;

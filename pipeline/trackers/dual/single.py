@@ -20,7 +20,14 @@ from pipeline.stages.merge import merge_test
 from pipeline.stages.model_update import UpdateDecision
 from pipeline.trackers.dual.appearance import FilterCue
 from pipeline.trackers.dual.colour import ColourStep, add_time
-from pipeline.trackers.dual.decide import Case, Decision, Evidence, Rule, needs_background
+from pipeline.trackers.dual.decide import (
+    Case,
+    Decision,
+    Evidence,
+    Rule,
+    corroborated,
+    needs_background,
+)
 from pipeline.trackers.dual.redetect import step_speed
 from pipeline.trackers.dual.state import BackgroundSource, DualTarget
 from pipeline.trackers.lifecycle import left_frame
@@ -92,8 +99,9 @@ def _against_others(
 ) -> Evidence:
     """``ev`` with the filter's detection of a missing target read against the other targets
     (``others``: their boxes this frame and colour models): whether it overlaps one's box, and
-    the best of their colour matches there."""
-    if cue is None or not others or ev.missing == 0:
+    the best of their colour matches there. Only a detection that could be
+    :func:`~pipeline.trackers.dual.decide.corroborated` is read (nothing else asks)."""
+    if cue is None or not others or not corroborated(ev, dual.decider.cfg):
         return ev
     rival = max(dual.colour.match_at(cs, cue.box, q) for _, q in others)
     on_another = any(cue.box.iou(b) > 0 for b, _ in others)

@@ -45,6 +45,7 @@ from pipeline.types import (
 )
 
 Done = tuple[DualTarget, TargetResult, list[Event]]
+"""A target's new state, its result and its events this frame."""
 
 
 def _rivals(
@@ -53,9 +54,6 @@ def _rivals(
     """Every other target's box this frame (``live``) and colour model, as target ``i``'s
     measurement is checked against them."""
     return tuple((b, steps[j].t.q) for j, b in live.items() if j != i)
-
-
-"""A target's new state, its result and its events this frame."""
 
 
 def _reach(m: single.Measured) -> float:
