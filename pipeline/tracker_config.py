@@ -233,6 +233,14 @@ class DeciderConfig(Section):
         still long enough to enter the background estimate is refused too when its colour is
         not seen; raising it refuses targets that differ little from their background (a cold
         target at night).
+    visible_carries_psr : float
+        The background test reads the IR frame only. A tracked target measured cleanly on the
+        frame before, whose filter detection peaks at this PSR in the visible channel and under
+        ``psr_reacquire`` in the IR, is not refused by it: the IR does not see this target (a
+        cool body against a warm wall, a dimmed colour in a shadow), so the IR background
+        cannot tell it from the background, and the visible channel carries it, >= 0; default
+        12 (0: off). A target found again after a gap is not spared: a cold look-alike is
+        seen the same way. Lowering it spares weaker visible peaks, a look-alike's included.
     occlusion_rho : float
         A colour match this strong carries a target whose IR has faded, in [0, 1]; default
         0.75.
@@ -337,6 +345,7 @@ class DeciderConfig(Section):
     inside_fraction: float = param(0.6, gt=0, le=1)
     overlap_freezes: bool = True
     background_share: float = param(0.05, ge=0, le=1)
+    visible_carries_psr: float = param(12.0, ge=0)
     occlusion_rho: float = param(0.75, ge=0, le=1)
     colour_trust_rho: float = param(0.85, ge=0, le=1)
     whole_colour_rho: float = param(0.9, ge=0, le=1)

@@ -532,6 +532,44 @@ def test_the_background_is_asked_only_where_nothing_else_confirms_the_filter():
     )
 
 
+def test_a_target_the_visible_channel_alone_carries_is_not_refused_by_the_ir_background():
+    """A target tracked without a break (measured cleanly on the frame before) whose filter
+    peaks at PSR 20 in the visible channel and 3 in the IR, on a box that differs from the
+    IR background in 2 % of its pixels and whose colour a shadow dimmed: the IR does not see
+    it, so its background does not refuse it. Each condition, broken, brings the refusal
+    back."""
+    from pipeline.trackers.dual.decide import needs_background
+
+    carried = dict(
+        contour_ok=False,
+        contour_reason="no-component",
+        contour_box=None,
+        rho_meanshift=0.2,
+        rho_appearance=0.1,
+        foreground_share=0.02,
+        support=(20.0, 3.0),
+        seen=(100.0, 100.0),
+        seen_frames=1,
+    )
+    d = decide(evidence(**carried), BG)
+    assert d.rule == Rule.APPEARANCE_CONTOUR_FAILED and d.measured and d.learn
+    assert not needs_background(evidence(**carried), BG)  # nothing to ask it
+    for change in (
+        dict(seen_frames=2),  # a break since its last clean measurement
+        dict(seen=None, seen_frames=0),  # none yet
+        dict(support=(20.0, 9.0)),  # the IR sees it: its background can tell
+        dict(support=(11.9, 3.0)),  # the visible peak under 12
+    ):
+        ev = evidence(**{**carried, **change})
+        assert decide(ev, BG).rule == Rule.ON_BACKGROUND, change
+    off = dataclasses.replace(BG, visible_carries_psr=0.0)
+    assert decide(evidence(**carried), off).rule == Rule.ON_BACKGROUND
+    found_again = missing(
+        **{**carried, "appearance_box": at(104), "psr": 20.0, "meanshift_box": at(104)}
+    )
+    assert decide(found_again, BG).case == Case.COAST  # a gap: a look-alike is seen the same
+
+
 def far_find(**kw) -> Evidence:
     """A target missing for 2 frames that its filter finds 60 px from its prediction at PSR 20
     (15 and 11 in the two channels), where the mean shift converged too (colour match 0.3);

@@ -26,7 +26,9 @@ Tracked last frame (:data:`TRACKED`)
     then ``PARTIAL_EVIDENCE`` / ``NO_EVIDENCE``: a coast on the motion prior, or
     ``ON_BACKGROUND`` where the filter was confident on a box that differs from a still camera's
     background in under ``background_share`` of its pixels with no colour to confirm it (the
-    box has slid off the target; its models stop learning and the re-detection search runs).
+    box has slid off the target; its models stop learning and the re-detection search runs),
+    unless the visible channel alone carries a target tracked without a break
+    (:func:`visible_carried`: the IR does not see it).
 
 Missing (hidden or lost; :data:`MISSING`)
     7. ``REDETECTED`` / ``APPEARANCE_NEAR_PREDICTION``: a filter detection at ``psr_reacquire``
@@ -297,7 +299,7 @@ def needs_background(ev: Evidence, cfg: DeciderConfig) -> bool:
     on_contour = _clean(ev) and agree(
         ev.contour_box, ev.appearance_box, ev.ref_size, cfg.agree_fraction
     )
-    if on_contour:
+    if on_contour or visible_carried(ev, cfg):
         return False
     if corroborated(ev, cfg):
         return True
@@ -347,10 +349,45 @@ def _colour_on_filter(ev: Evidence, cfg: DeciderConfig) -> bool:
     )
 
 
+def visible_carried(ev: Evidence, cfg: DeciderConfig) -> bool:
+    """Whether the visible channel alone carries the filter's detection of a target tracked
+    without a break (``visible_carries_psr``): measured cleanly on the frame before, its
+    visible peak at that PSR, its IR peak under ``psr_reacquire``. The IR background test
+    cannot refuse such a detection: the IR does not see this target.
+
+    Examples
+    --------
+    >>> from pipeline.tracker_config import DeciderConfig
+    >>> at = BBox.from_center(100, 100, 12, 24)
+    >>> ev = Evidence(measured_last=True, missing=0, prior=at, ref_size=(12, 24),
+    ...               colour_informative=True, rho_meanshift=0.3, meanshift_box=at,
+    ...               contour_box=None, contour_ok=False, contour_reason="no-component",
+    ...               rho_contour=float("nan"), appearance_box=at, psr=20.0,
+    ...               rho_appearance=0.3, support=(20.0, 3.0), seen=(100, 100), seen_frames=1)
+    >>> visible_carried(ev, DeciderConfig())
+    True
+    >>> import dataclasses
+    >>> visible_carried(dataclasses.replace(ev, seen_frames=40), DeciderConfig())
+    False
+    >>> visible_carried(dataclasses.replace(ev, support=(20.0, 9.0)), DeciderConfig())
+    False
+    """
+    vis, ir = ev.support
+    return (
+        cfg.visible_carries_psr > 0
+        and ev.measured_last
+        and ev.seen is not None
+        and ev.seen_frames <= 1
+        and _good(vis, cfg.visible_carries_psr)
+        and not _good(ir, cfg.psr_reacquire)
+    )
+
+
 def _on_background(ev: Evidence, cfg: DeciderConfig) -> bool:
     """The filter's box differs from the still camera's background in under
-    ``background_share`` of its pixels and its colour does not confirm it."""
-    if cfg.background_share <= 0 or math.isnan(ev.foreground_share):
+    ``background_share`` of its pixels, its colour does not confirm it, and the visible
+    channel does not carry it alone (:func:`visible_carried`)."""
+    if cfg.background_share <= 0 or math.isnan(ev.foreground_share) or visible_carried(ev, cfg):
         return False
     confirmed = ev.colour_informative and _good(ev.rho_appearance, cfg.colour_min_rho)
     return ev.foreground_share < cfg.background_share and not confirmed
