@@ -67,6 +67,27 @@ def test_a_planted_shift_and_scale_are_recovered(textured, dx, dy, s):
     assert size[1] / size[0] == pytest.approx(1.5, rel=1e-9)  # the scale filter keeps the aspect
 
 
+@pytest.mark.parametrize("s", [1.3, 0.75])
+def test_the_first_filter_walks_a_lagging_size_to_a_planted_scale(textured, s):
+    """The target grown (or shrunk) by ``s`` since the first frame while the size estimate
+    stayed where it was: each check moves the size one ``anchor_step`` towards ``s`` and stops
+    within one step of it."""
+    vis, ir = textured
+    cfg = A.AppearanceConfig()
+    first = A.train(vis, ir, BBox.from_center(*CENTRE, 40, 60), cfg)
+    v2, i2 = warp(vis, 0.0, 0.0, s), warp(ir, 0.0, 0.0, s)
+    size, steps = (40.0, 60.0), []
+    for _ in range(12):
+        c = A.anchor_factor(first, A.Detection(CENTRE, 1.0, 10.0, size, 1.0), v2, i2, cfg)
+        steps.append(c)
+        size = (size[0] * c, size[1] * c)
+    q = cfg.anchor_step
+    assert steps[0] == pytest.approx(q if s > 1 else 1 / q)
+    assert size[0] / 40.0 == pytest.approx(s, rel=q - 1)
+    assert steps[-1] == 1.0  # it stopped there
+    assert size[1] / size[0] == pytest.approx(1.5)
+
+
 def test_psr_is_high_on_the_target_and_low_elsewhere(textured):
     vis, ir = textured
     cfg = A.AppearanceConfig()

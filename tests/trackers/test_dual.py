@@ -144,6 +144,27 @@ def test_a_target_the_ir_does_not_show_is_not_refused_as_background(tmp_path):
     assert sum(r["status"] == "lost" for r in rows) <= 60
 
 
+def test_an_approaching_target_s_box_grows_with_it(tmp_path):
+    """Random development seed 76: a person 32 px tall walking towards the camera, 58 px by
+    frame 160 (0.5 % a frame, under a tenth of the scale filter's step). The scale filter,
+    learning each frame at the size it estimated, stays at 33-34 px (0.61 of the truth's
+    height over the last third of the run, the first filter's check off, as by default);
+    checked against the first frame's filter every 5 frames the box grows with the target
+    (0.90)."""
+    from pipeline.synthetic import synthesize_random
+
+    d = synthesize_random(tmp_path / "s", 76, targets=1, progress=False)
+    gt = np.loadtxt(d / "visible.txt", delimiter=",")
+
+    def height_ratio(sets):
+        rows, _ = _targets_table(d, tmp_path / str(len(sets)), sets)
+        h = [float(r["h_px"]) / g[3] for r, g in zip(rows, gt, strict=True)]
+        return float(np.median(h[len(h) * 2 // 3 :]))
+
+    on, off = height_ratio(["dual.appearance.anchor_every_frames=5"]), height_ratio([])
+    assert on >= 0.8 and off <= 0.7, (on, off)
+
+
 def test_a_target_that_turns_while_hidden_is_searched_for_where_it_was_seen(tmp_path):
     """Random development seed 1 (two targets), frame 28: target 1 turns back at 7 px per frame as
     it is lost; its coast runs on the other way. On the prediction's line alone (the turn parts

@@ -4,7 +4,7 @@ paper)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -74,6 +74,26 @@ class AppearanceCue:
         """``d`` with the scale filter's size at its centre."""
         vis, ir = filter_images(frames, mode)
         return app.rescale(model, d, vis, ir, self.cfg)
+
+    def anchored(
+        self,
+        first: app.AppearanceModel | None,
+        d: app.Detection,
+        frames: FramePair,
+        mode: str,
+    ) -> app.Detection:
+        """``d`` with its size moved by the target's first filter ``first``
+        (:func:`pipeline.stages.appearance.anchor_factor`) on every ``anchor_every_frames``-th
+        frame where the filter reads a visible frame; ``d`` itself on the others, on infrared
+        alone, without a first filter, or with the check off."""
+        every = self.cfg.anchor_every_frames
+        vis, ir = filter_images(frames, mode)
+        if first is None or vis is None or every <= 0 or frames.index % every:
+            return d
+        c = app.anchor_factor(first, d, vis, ir, self.cfg)
+        if c == 1.0:
+            return d
+        return replace(d, size=(d.size[0] * c, d.size[1] * c), scale_factor=d.scale_factor * c)
 
     def cue(self, d: app.Detection, frames: FramePair, redetected: bool) -> FilterCue:
         """The detection ``d`` as the cue the decider reads, its centre kept in the frame."""

@@ -140,6 +140,8 @@ def _filter(
     best, redetected = _redetect(dual, frames, cs, mode, best, background)
     if not redetected and a.with_scale(frames.index):
         best = a.rescale(t.appearance, best, frames, mode)
+        if dual.decider.filter_confident(best.psr):
+            best = a.anchored(t.first_model, best, frames, mode)
     add_time(timing, "appearance", clock)
     return a.cue(best, frames, redetected)
 
