@@ -140,7 +140,7 @@ class AppearanceConfig(Section):
         time); the samples it learns are off by up to that distance and by the interpolation.
     anchor_every_frames : int
         Every this many frames the tracker checks the size against the target's first filter
-        (:func:`anchor_factor`), >= 0; default 0 (off). The scale filter learns each frame
+        (:func:`anchor_factor`), >= 0; default 5 (0: off). The scale filter learns each frame
         at the size it estimated, so a size that lags a slow growth (an approaching walker,
         0.5 % a frame, under a tenth of a scale step) is learned as the target's and never
         caught up: the first frame's translation filter, which has learned nothing since,
@@ -148,12 +148,11 @@ class AppearanceConfig(Section):
         costs three translation detections a check. The dual tracker checks only where the
         filter reads a visible frame: on infrared alone the first filter's peak leans to
         smaller sizes (a warm blob that fills more of the window matches better), so a
-        tracked horse shrank to 0.8 of its size. At 5 the development range's 2-3 target
-        IDF1 rises by 0.03-0.05 and one target's AUC by 0.01, but named scenes move (group3's
-        identity purity 0.983 -> 0.978), so it stays off until those are reviewed.
+        tracked horse shrank to 0.8 of its size; nor near another target (its peak at a
+        larger size could hold the neighbour).
     anchor_step : float
         The sizes the check compares: the estimated one and this factor above and below it;
-        the size moves by it when one side wins, > 1; default 1.05.
+        the size moves by it when one side wins, in (1, 1.5]; default 1.05.
     anchor_margin : float
         A side wins when its peak exceeds the estimated size's by this share (and the other
         side's), >= 0; default 0.02. Raising it moves the size less often, on a clearer
@@ -196,7 +195,7 @@ class AppearanceConfig(Section):
     update_every_frames: int = param(1, ge=1)
     scale_every_frames: int = param(1, ge=1)
     scale_reuse_px: float = param(1.0, ge=0)
-    anchor_every_frames: int = param(0, ge=0)
+    anchor_every_frames: int = param(5, ge=0)
     anchor_step: float = param(1.05, gt=1, le=1.5)
     anchor_margin: float = param(0.02, ge=0)
     window_reuse_px: float = param(1.0, ge=0)

