@@ -176,12 +176,15 @@ def test_a_target_that_turns_while_hidden_is_searched_for_where_it_was_seen(tmp_
     frame 31; around the prediction alone it is found only by the whole-frame search, 12 frames
     later. With the turn parts it is followed through its turns whichever way. The bounds hold
     with a margin of 0.04 over the spread of level-set step moves of +-1e-7 and +-2e-7 relative
-    (seen 0.745-0.83, without it 0.50-0.56, default 0.71-0.875)."""
+    (seen 0.745-0.83, without it 0.50-0.56, default 0.71-0.875; 0.93 with the first filter's size
+    check, which the two ablations leave off: with it and the turn parts off, target 1 is taken
+    back elsewhere, 0.555)."""
     from pipeline.synthetic import synthesize_random
 
     d = synthesize_random(tmp_path / "s", 1, targets=(2, 3), progress=False)
-    seen = _p20(d, tmp_path / "a", TURN_PARTS_OFF, "1")
-    unseen = _p20(d, tmp_path / "b", [*TURN_PARTS_OFF, "dual.redetect.last_seen=false"], "1")
+    off = [*TURN_PARTS_OFF, "dual.appearance.anchor_every_frames=0"]
+    seen = _p20(d, tmp_path / "a", off, "1")
+    unseen = _p20(d, tmp_path / "b", [*off, "dual.redetect.last_seen=false"], "1")
     default = _p20(d, tmp_path / "c", [], "1")
     assert seen >= 0.7 and unseen <= 0.6 and default >= 0.65, (seen, unseen, default)
 

@@ -73,7 +73,7 @@ def measure(
     detector's, for the whole-frame search; ``others`` are the other targets' boxes this frame
     and their colour models (a filter detection on one of their boxes, or that one of their
     models matches better, is not :func:`~pipeline.trackers.dual.decide.corroborated`)."""
-    cue = _filter(dual, frames, cs, mode, timing, background, tuple(b for b, _ in others))
+    cue = _filter(dual, frames, cs, mode, timing, background, others)
     c = _contour(dual, frames, cs, cue, mode, timing, start)
     usable = c if dual.contour.usable(c) else None
     rho_c = dual.colour.match_at(cs, usable.box if usable is not None else None)
@@ -115,14 +115,14 @@ def _filter(
     mode: str,
     timing: dict[str, float],
     background: BackgroundSource,
-    neighbours: tuple[BBox, ...] = (),
+    others: tuple[tuple[BBox, np.ndarray], ...] = (),
 ) -> FilterCue | None:
     """The filter's detection at the prediction (and at the colour's position when that is
     elsewhere: a turn; and, unsure there, where a stop or a reversal would have taken the
     target: :meth:`Decider.turns`); a missing target is also looked for by the re-detector.
     Its size is checked against the target's first filter (``appearance.anchor_every_frames``)
-    only where no other target (``neighbours``, their boxes this frame) lies within half a box:
-    a larger size's peak could hold the neighbour."""
+    only where no other target (``others``, their boxes this frame) lies within half a box: a
+    larger size's peak could hold the neighbour."""
     t, a = cs.t, dual.appearance
     if a is None or t.appearance is None:
         return None
@@ -144,12 +144,29 @@ def _filter(
     best, redetected = _redetect(dual, frames, cs, mode, best, background)
     if not redetected and a.with_scale(frames.index):
         best = a.rescale(t.appearance, best, frames, mode)
-        if dual.decider.filter_confident(best.psr) and not _near_another(
-            a.cue(best, frames, False).box, neighbours
-        ):
-            best = a.anchored(t.first_model, best, frames, mode)
+        best = _anchored(dual, t, best, frames, mode, others)
     add_time(timing, "appearance", clock)
     return a.cue(best, frames, redetected)
+
+
+def _anchored(
+    dual: Dual,
+    t: DualTarget,
+    d: Detection,
+    frames: FramePair,
+    mode: str,
+    others: tuple[tuple[BBox, np.ndarray], ...],
+) -> Detection:
+    """``d`` with its size checked against the target's first filter when it is confident and
+    no other target lies within half a box of it
+    (:meth:`~pipeline.trackers.dual.appearance.AppearanceCue.anchored`)."""
+    a = dual.appearance
+    assert a is not None
+    if not dual.decider.filter_confident(d.psr):
+        return d
+    if _near_another(a.cue(d, frames, False).box, tuple(b for b, _ in others)):
+        return d
+    return a.anchored(t.first_model, d, frames, mode)
 
 
 def _redetect(
