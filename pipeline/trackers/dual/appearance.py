@@ -75,6 +75,17 @@ class AppearanceCue:
         vis, ir = filter_images(frames, mode)
         return app.rescale(model, d, vis, ir, self.cfg)
 
+    def anchor_due(self, first: app.AppearanceModel | None, frames: FramePair, mode: str) -> bool:
+        """The size is checked against the first filter ``first`` on this frame: every
+        ``anchor_every_frames``-th, where the filter reads a visible frame."""
+        every = self.cfg.anchor_every_frames
+        return (
+            first is not None
+            and every > 0
+            and frames.index % every == 0
+            and filter_images(frames, mode)[0] is not None
+        )
+
     def anchored(
         self,
         first: app.AppearanceModel | None,
@@ -86,10 +97,9 @@ class AppearanceCue:
         (:func:`pipeline.stages.appearance.anchor_factor`) on every ``anchor_every_frames``-th
         frame where the filter reads a visible frame; ``d`` itself on the others, on infrared
         alone, without a first filter, or with the check off."""
-        every = self.cfg.anchor_every_frames
-        vis, ir = filter_images(frames, mode)
-        if first is None or vis is None or every <= 0 or frames.index % every:
+        if not self.anchor_due(first, frames, mode):
             return d
+        vis, ir = filter_images(frames, mode)
         c = app.anchor_factor(first, d, vis, ir, self.cfg)
         if c == 1.0:
             return d

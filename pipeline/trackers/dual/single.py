@@ -162,7 +162,7 @@ def _anchored(
     (:meth:`~pipeline.trackers.dual.appearance.AppearanceCue.anchored`)."""
     a = dual.appearance
     assert a is not None
-    if not dual.decider.filter_confident(d.psr):
+    if not a.anchor_due(t.first_model, frames, mode) or not dual.decider.filter_confident(d.psr):
         return d
     if _near_another(a.cue(d, frames, False).box, tuple(b for b, _ in others)):
         return d
