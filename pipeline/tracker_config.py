@@ -95,6 +95,21 @@ class ColourConfig(Section):
     missing_search_scale : float
         While a target is missing, its colour search region is this many times larger, in
         [1, 5]; default 2.
+    first_model_excludes_nearer : bool
+        Beyond the paper: a target's first colour model leaves out the pixels of the other
+        targets given on that frame whose boxes overlap its box and reach lower in the frame
+        (:func:`pipeline.stages.occlusion.nearer_overlapping`: nearer, where targets stand on
+        one ground), so that a target given partly behind another does not take that one's
+        colours for its own; default True. Seen from straight above, the order is arbitrary
+        and a target loses the pixels another's box overlaps; False counts every pixel of the
+        box (the paper's model).
+    first_model_min_uncovered : float
+        With ``first_model_excludes_nearer``, the pixels left must hold at least this share
+        of the box's kernel weight, in [0, 1]; default 0.05. Below it the whole box counts: a
+        target given almost wholly hidden has too few pixels of its own to be told from its
+        surroundings, and its model would be the background's at its box's rim. The kernel
+        weighs the box's centre most, so a target half hidden at its middle keeps about a
+        fifth of the weight.
     """
 
     section = "colour"
@@ -103,6 +118,8 @@ class ColourConfig(Section):
     min_value: int = param(40, ge=0, le=255)
     min_fraction: float = param(0.3, ge=0, le=1)
     missing_search_scale: float = param(2.0, ge=1, le=5)
+    first_model_excludes_nearer: bool = True
+    first_model_min_uncovered: float = param(0.05, ge=0, le=1)
 
 
 @dataclass(frozen=True)

@@ -352,7 +352,13 @@ def window_histogram(
     return h / s if s > 0 else h
 
 
-def kernel_histogram(bins: NDArray[np.int32], box: BBox, n_bins: int) -> NDArray[np.float64]:
+def kernel_histogram(
+    bins: NDArray[np.int32],
+    box: BBox,
+    n_bins: int,
+    exclude: tuple[BBox, ...] = (),
+    min_share: float = 0.0,
+) -> NDArray[np.float64]:
     """Normalized Epanechnikov-weighted histogram of the ellipse inscribed in ``box``.
 
     Parameters
@@ -363,14 +369,46 @@ def kernel_histogram(bins: NDArray[np.int32], box: BBox, n_bins: int) -> NDArray
         Box in the px of ``bins``.
     n_bins : int
         Number of bins m.
+    exclude : tuple of BBox, optional
+        Boxes (px of ``bins``) whose pixels do not count: the parts of ``box`` something else
+        covers. A pixel counts as inside a box when its centre is.
+    min_share : float, optional
+        With ``exclude``, the pixels left must hold at least this share of the kernel weight
+        of the ellipse's pixels in the image, in [0, 1]; default 0 (any pixel left).
 
     Returns
     -------
-    (m,) float64 summing to 1 (all zeros when the box has no pixel in the image).
+    (m,) float64 summing to 1 (all zeros when the box has no pixel in the image, or too
+    little left outside ``exclude``).
+
+    Examples
+    --------
+    The right half of a two-colour box left out leaves the left half's colour:
+
+    >>> bins = np.zeros((4, 8), np.int32); bins[:, 4:] = 1
+    >>> kernel_histogram(bins, BBox(0, 0, 8, 4), 2).round(3)
+    array([0.5, 0.5])
+    >>> kernel_histogram(bins, BBox(0, 0, 8, 4), 2, exclude=(BBox(4, 0, 4, 4),))
+    array([1., 0.])
+    >>> kernel_histogram(bins, BBox(0, 0, 8, 4), 2, exclude=(BBox(2, 0, 6, 4),), min_share=0.25)
+    array([0., 0.])
     """
     if box.w <= 0 or box.h <= 0:
         raise ValueError(f"half-axes must be positive; got ({box.w / 2.0}, {box.h / 2.0})")
-    return ellipse_model(bins, box.cx, box.cy, box.w / 2.0, box.h / 2.0, n_bins)[0]
+    if not exclude:
+        return ellipse_model(bins, box.cx, box.cy, box.w / 2.0, box.h / 2.0, n_bins)[0]
+    valid = np.ones(bins.shape, np.bool_)
+    H, W = bins.shape
+    for b in exclude:  # pixel c is inside when b.x <= c + 0.5 < b.x2
+        x0, x1 = min(max(round(b.x), 0), W), min(max(round(b.x2), 0), W)
+        y0, y1 = min(max(round(b.y), 0), H), min(max(round(b.y2), 0), H)
+        valid[y0:y1, x0:x1] = False
+    cx, cy, hx, hy = float(box.cx), float(box.cy), box.w / 2.0, box.h / 2.0
+    h, mass, _ = ellipse_histogram(bins, cx, cy, hx, hy, n_bins, valid)
+    if min_share > 0 and mass < min_share * ellipse_histogram(bins, cx, cy, hx, hy, n_bins)[1]:
+        return np.zeros(n_bins, np.float64)
+    s = np_sum(h)
+    return h / s if s > 0 else h
 
 
 def bhattacharyya(p: NDArray[np.float64], q: NDArray[np.float64]) -> float:

@@ -9,6 +9,9 @@
   partial, ``area < min_area`` severe, where ``min_area`` is 40 % of the smallest area
   measured in the first 20 unoccluded frames.
 * More than ``K0`` consecutive severe frames: the target is lost.
+
+Beyond the paper, :func:`nearer_overlapping` orders given boxes by depth (which may hide which)
+where targets stand on one ground.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import enum
 from dataclasses import dataclass
 
 from pipeline.params import Section, param
+from pipeline.types import BBox
 
 
 @dataclass(frozen=True)
@@ -154,3 +158,25 @@ def next_severe_run(grade: Grade, run: int) -> int:
 def is_lost(severe_run: int, cfg: OcclusionConfig) -> bool:
     """More than K0 consecutive severe frames."""
     return severe_run > cfg.max_severe_frames
+
+
+def nearer_overlapping(boxes: tuple[BBox, ...], i: int) -> tuple[BBox, ...]:
+    """The boxes that overlap ``boxes[i]`` and reach lower in the frame: where targets stand on
+    one ground seen from above it (street and surveillance views), the nearer ones, which hide
+    ``boxes[i]`` where they overlap it. Boxes whose bottoms are level hide nothing of each
+    other; seen from straight above (nadir aerial footage) the order means nothing.
+
+    Examples
+    --------
+    >>> far, near = BBox(10, 10, 10, 30), BBox(15, 20, 10, 30)
+    >>> nearer_overlapping((far, near), 0)
+    (BBox(x=15, y=20, w=10, h=30),)
+    >>> nearer_overlapping((far, near), 1), nearer_overlapping((far, BBox(20, 20, 5, 5)), 0)
+    ((), ())
+    """
+    b = boxes[i]
+    return tuple(
+        o
+        for j, o in enumerate(boxes)
+        if j != i and o.x < b.x2 and b.x < o.x2 and o.y < b.y2 and b.y < o.y2 and o.y2 > b.y2
+    )

@@ -35,9 +35,11 @@ def test_identities_survive_crossings_and_lookalikes_side_by_side(scene, tmp_pat
 def test_overlapping_targets_teach_their_models_nothing(tmp_path):
     """Random development seed 58 (two targets that overlap from frame 3 and again at the end).
     Learning through the overlap, each model takes in the other target's pixels: the colour
-    model updates on 32 target-frames of the 33 frames whose boxes overlap by IoU 0.2 and IDF1
-    is 0.800; with ``decider.overlap_freezes`` no model learns on any of them and IDF1 is 0.973
-    (the boxes keep their own targets' sizes; P@20 is 1.000 either way)."""
+    model updates on 30 target-frames of the 34 frames whose boxes overlap by IoU 0.2 and IDF1
+    is 0.84-0.87 under rounding-level moves of the level set's step (0.80 before the first
+    colour model left out the nearer target's pixels); with ``decider.overlap_freezes`` no
+    model learns on any of them and IDF1 is 0.97-0.98 (the boxes keep their own targets'
+    sizes; P@20 is 1.000 either way)."""
     from pipeline.synthetic import synthesize_random
 
     d = synthesize_random(tmp_path / "s", 58, targets=(2, 3), progress=False)
@@ -68,7 +70,7 @@ def test_overlapping_targets_teach_their_models_nothing(tmp_path):
         found[on] = (len(overlap), len(learned), res.summary["metrics"]["idf1"])
     assert found[True][0] >= 20 and found[True][1] == 0, found
     assert found[False][1] >= 10, found
-    assert found[True][2] >= 0.93 and found[False][2] <= 0.85, found
+    assert found[True][2] >= 0.93 and found[False][2] <= 0.9, found
 
 
 def test_group_of_three_merging_at_once(scene, tmp_path):
@@ -299,3 +301,63 @@ def test_a_target_on_another_with_the_wrong_colour_yields_to_it(scene, tmp_path)
     assert on["purity"]["target_purity"]["1"] >= 0.97
     for m in (on, was_on):
         assert m["purity"]["overall"] >= 0.975 and m["id_switches"] == 0
+
+
+def test_a_target_given_behind_another_does_not_take_its_colours():
+    """Two targets given on one frame, the red one's box partly behind the green one's (which
+    reaches lower in the frame, so is nearer): the red target's first colour model holds no
+    green, the green one's is the whole box's; with ``first_model_excludes_nearer`` off the red
+    model takes in the green it overlaps; a target with under ``first_model_min_uncovered``
+    (0.05) of its box's kernel weight outside the nearer one's box (0.02 here), or wholly
+    inside it, keeps its whole box's model."""
+    from pipeline.io.sequence import FramePair
+    from pipeline.stages.histogram import HistogramConfig, appearance_bins, kernel_histogram
+    from pipeline.stages.meanshift import MeanShiftConfig
+    from pipeline.stages.model_update import ModelUpdateConfig
+    from pipeline.tracker_config import ColourConfig
+    from pipeline.trackers.dual.colour import ColourCue
+
+    vis = np.full((60, 80, 3), 128, np.uint8)
+    far, near = BBox(20, 10, 16, 30), BBox(28, 20, 16, 30)
+    vis[10:40, 20:36] = (0, 0, 230)  # red (BGR), then the green one in front of it
+    vis[20:50, 28:44] = (0, 230, 0)
+    frames = FramePair(1, vis, np.zeros((60, 80), np.uint8))
+    hcfg = HistogramConfig()
+    bins, m = appearance_bins(vis, hcfg)
+    green = int(bins[30, 40])
+    assert green != int(bins[15, 22])
+
+    def cue(on):
+        return ColourCue(
+            ColourConfig(first_model_excludes_nearer=on),
+            hcfg,
+            MeanShiftConfig(),
+            ModelUpdateConfig(),
+        )
+
+    q_far, q_near = cue(True).models(frames, "dual", [far, near])
+    assert q_far[green] == 0.0 and q_far.sum() == pytest.approx(1.0)
+    assert np.array_equal(q_near, kernel_histogram(bins, near, m))
+    q_off, _ = cue(False).models(frames, "dual", [far, near])
+    assert q_off[green] >= 0.1, q_off[green]
+    for hidden in (BBox(27, 17, 16, 30), BBox(30, 22, 8, 10)):
+        q_hidden, _ = cue(True).models(frames, "dual", [hidden, near])
+        assert np.array_equal(q_hidden, kernel_histogram(bins, hidden, m))
+        assert q_hidden[green] > 0.5
+
+
+def test_a_target_given_behind_another_keeps_its_identity(tmp_path):
+    """Random development seed 111 (three targets): target 2, a cyclist, is given partly behind
+    target 1, a person whose box reaches lower (visibility 0.78 on frame 1). Its first colour
+    model taken from the whole box holds the person's colours: the cyclist's track coasts and
+    drifts off it, on it 0.17 of its frames (IDF1 0.485-0.49 under rounding-level moves of the
+    level set's step); without them (``first_model_excludes_nearer``) it stays on it
+    throughout (0.889-0.895)."""
+    from pipeline.synthetic import synthesize_random
+
+    d = synthesize_random(tmp_path / "s", 111, targets=(2, 3), progress=False)
+    on = metrics(d, tmp_path, "on")
+    off = metrics(d, tmp_path, "off", ["dual.colour.first_model_excludes_nearer=false"])
+    assert on["idf1"] >= 0.84 and off["idf1"] <= 0.55, (on["idf1"], off["idf1"])
+    purity = [m["purity"]["target_purity"]["2"] for m in (on, off)]
+    assert purity[0] >= 0.95 and purity[1] <= 0.4, purity

@@ -27,6 +27,7 @@ from pipeline.stages.model_update import (
     selective_update,
     should_update_model,
 )
+from pipeline.stages.occlusion import nearer_overlapping
 from pipeline.tracker_config import ColourConfig
 from pipeline.trackers.dual.state import DualTarget
 from pipeline.types import BBox
@@ -123,9 +124,17 @@ class ColourCue:
     model_update: ModelUpdateConfig
 
     def models(self, frames: FramePair, mode: str, boxes: list[BBox]) -> list[np.ndarray]:
-        """The colour models of targets given at ``boxes`` on their first frame."""
+        """The colour models of targets given at ``boxes`` on their first frame, each without
+        the pixels of the nearer targets that overlap it where enough is left
+        (``first_model_excludes_nearer``, ``first_model_min_uncovered``)."""
         bins, m = appearance_bins(colour_image(frames, mode), self.histogram)
-        return [kernel_histogram(bins, b, m) for b in boxes]
+        exclude = self.cfg.first_model_excludes_nearer
+        out = []
+        for i, b in enumerate(boxes):
+            nearer = nearer_overlapping(tuple(boxes), i) if exclude else ()
+            q = kernel_histogram(bins, b, m, nearer, self.cfg.first_model_min_uncovered)
+            out.append(q if q.any() or not nearer else kernel_histogram(bins, b, m))
+        return out
 
     def informative(self, image: np.ndarray, box: BBox) -> tuple[bool, float]:
         """Whether enough of the kernel's pixels are bright enough to carry colour (always True
