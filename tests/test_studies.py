@@ -480,3 +480,34 @@ def test_refusals_class_the_refused_detection_by_its_distance_to_the_truth():
     lines = ref.table(counts)
     assert lines[2].startswith("| rule:") and lines[-1] == "| psr:>=20 | 1 | 1 | 0 | 0 | 1.00 |"
     assert [ln.split(" | ")[0] for ln in lines[5:]] == ["| psr:0-7", "| psr:7-9", "| psr:>=20"]
+
+
+def test_paired_runs_compares_two_runs_scene_by_scene(tmp_path, capsys):
+    """``tools/paired_runs.py``: the paired difference of two runs' reports with its standard
+    error, the scenes that moved, the ones that lost most; unscored scenes left out, IDF1 and
+    visible-frame purity by default where the scenes have several targets, and its own doctests
+    (which give the exact arithmetic)."""
+    import doctest
+
+    pr = _tool("paired_runs")
+    assert doctest.testmod(pr).failed == 0
+
+    def report(path, values):
+        seqs = {
+            k: {"metrics": {"idf1": v, "purity_visible": v, "p20": 1.0} if v is not None else None}
+            for k, v in values.items()
+        }
+        path.mkdir()
+        (path / "report.json").write_text(json.dumps({"sequences": seqs}))
+        return path
+
+    base = report(tmp_path / "base", {"a": 0.5, "b": 0.8, "c": 0.9, "d": None})
+    new = report(tmp_path / "new", {"a": 0.7, "b": 0.8, "c": 0.85, "d": 0.9})
+    assert pr.main([str(base), str(new)]) == 0
+    out = capsys.readouterr().out
+    assert "| idf1 | 3 | 0.7333 -> 0.7833 | +0.0500 +- 0.0764 |" in out
+    assert "| 1 / 1 | c -0.050 |" in out and "| purity_visible | 3 |" in out
+    assert "| p20 |" not in out
+    assert pr.main([str(base), str(new / "report.json"), "--metric", "auc"]) == 1
+    with pytest.raises(SystemExit, match=r"no report\.json"):
+        pr.main([str(base), str(tmp_path / "missing")])
