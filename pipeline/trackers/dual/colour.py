@@ -128,10 +128,10 @@ class ColourCue:
         the pixels of the nearer targets that overlap it where enough is left
         (``first_model_excludes_nearer``, ``first_model_min_uncovered``)."""
         bins, m = appearance_bins(colour_image(frames, mode), self.histogram)
-        exclude = self.cfg.first_model_excludes_nearer
+        given = tuple(boxes) if self.cfg.first_model_excludes_nearer else ()
         out = []
         for i, b in enumerate(boxes):
-            nearer = nearer_overlapping(tuple(boxes), i) if exclude else ()
+            nearer = nearer_overlapping(given, i) if given else ()
             q = kernel_histogram(bins, b, m, nearer, self.cfg.first_model_min_uncovered)
             out.append(q if q.any() or not nearer else kernel_histogram(bins, b, m))
         return out
