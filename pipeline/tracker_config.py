@@ -156,6 +156,14 @@ class RedetectConfig(Section):
     candidates : int
         At most this many places are tried by one search, >= 1; default 12 (a larger region
         is covered over successive searches). The cost of a search grows with it.
+    min_region_area_ratio : float
+        The whole-frame search tries the detector's regions of this share of the target's
+        box area up to four times it (the closest in size first), in (0, 1]; default 0.05.
+        A region much smaller than the target is a part of it (a torso, a wheel, the warm
+        lines of a cyclist whose frame and legs are at the ground's temperature), and the
+        filter's window around it (``1 + padding`` times the size) covers the whole target.
+        Raising it to 0.25 tries only regions of about the target's size: a target the
+        detector sees in fragments is then not searched for at all.
     detection : DetectionConfig
         The detector of the whole-frame search (run on the IR frame, the visible one without
         IR; its visible-channel regions are never asked for). Its regions are not grown
@@ -175,6 +183,7 @@ class RedetectConfig(Section):
     first_model: bool = True
     every_frames: int = param(2, ge=1)
     candidates: int = param(12, ge=1)
+    min_region_area_ratio: float = param(0.05, gt=0, le=1)
     detection: DetectionConfig = field(
         default_factory=lambda: DetectionConfig(grow_k=0.0, background_samples=13)
     )

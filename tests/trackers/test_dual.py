@@ -650,6 +650,35 @@ def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_backgr
     assert not any(abs(c[0] - truth[0]) < 4 and abs(c[1] - truth[1]) < 4 for c in own), own
 
 
+def test_the_whole_frame_search_tries_a_fragment_of_the_target():
+    """A target whose IR shows only a warm part (a torso above legs and a frame at the ground's
+    temperature) gives the detector a region of a tenth of its box: the search tries it (the
+    filter's window around it holds the whole target); taking only regions of about the
+    target's size, it tried nothing."""
+    import cv2
+
+    from pipeline.io.sequence import FramePair
+    from pipeline.stages.detection import DetectionConfig, quantile_background
+    from pipeline.tracker_config import RedetectConfig
+    from pipeline.trackers.dual.redetect import Redetector
+
+    rng = np.random.default_rng(5)
+    ground = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 3)
+    frames = []
+    for k in range(25):
+        img = ground + rng.normal(0, 2, ground.shape)
+        x = 20 + 10 * k
+        img[90:102, x + 7 : x + 15] += 40  # the warm 8 x 12 px torso of a 22 x 56 px target
+        frames.append(np.clip(img, 0, 255).astype(np.uint8))
+    bg = quantile_background(frames, DetectionConfig())
+    fp = FramePair(13, None, frames[12])
+    torso = (20 + 120 + 11, 96)
+    found = Redetector(RedetectConfig()).frame_candidates(fp, (22, 56), bg)
+    assert len(found) == 1 and found[0] == pytest.approx(torso, abs=2.0)
+    whole_only = Redetector(RedetectConfig(min_region_area_ratio=0.25))
+    assert whole_only.frame_candidates(fp, (22, 56), bg) == []
+
+
 def test_the_runner_gives_the_dual_tracker_the_sequence_background(scene):
     from pipeline.io.sequence import open_sequence
     from pipeline.trackers import make_tracker

@@ -150,15 +150,16 @@ class Redetector:
     def frame_candidates(
         self, frames: FramePair, size: tuple[float, float], background: BackgroundSource = None
     ) -> list[tuple[float, float]]:
-        """Centres of the detector's regions in the IR frame (the visible one without IR) about
-        the target's size (a quarter to four times its area), the closest in size first: where a
-        lost target may be anywhere. ``background`` is the detector's (the sequence's, or a
+        """Centres of the detector's regions in the IR frame (the visible one without IR) of
+        ``min_region_area_ratio`` to four times the target's area, the closest in size first:
+        where a lost target may be anywhere. ``background`` is the detector's (the sequence's, or a
         function returning it, read only here)."""
         img = frames.infrared if frames.infrared is not None else frames.visible
         assert img is not None
         bg = background() if callable(background) else background
         found = detection.detect(img, self.detection, bg).regions
         area = max(size[0] * size[1], 1.0)
-        near = [r for r in found if 0.25 <= r.box.area / area <= 4.0]
+        lo = self.cfg.min_region_area_ratio
+        near = [r for r in found if lo <= r.box.area / area <= 4.0]
         near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
         return [r.box.center for r in near[: self.cfg.candidates]]
