@@ -12,6 +12,7 @@ from pipeline.stages import detection
 from pipeline.tracker_config import RedetectConfig
 from pipeline.trackers.dual.colour import ColourStep
 from pipeline.trackers.dual.state import BackgroundSource, DualTarget, History
+from pipeline.types import BBox
 
 
 def region_candidates(
@@ -101,11 +102,14 @@ class Redetector:
         cs: ColourStep,
         size: tuple[float, float],
         background: BackgroundSource = None,
+        occupied: tuple[BBox, ...] = (),
     ) -> list[tuple[float, float]]:
         """Centres to try for the missing target of ``cs``: the mean shift's, and every
         ``every_frames`` frames a region widening with the missing frames around the prediction
-        (and around where the target was last seen) or, after ``global_after_frames``, the
-        detector's regions of the whole frame."""
+        (and around where the target was last seen; with ``regions_in_radius``, the detector's
+        regions within it first) or, after ``global_after_frames``, the detector's regions of
+        the whole frame. A region whose centre lies inside one of the ``occupied`` boxes (the
+        other targets' this frame) is not tried within the radius."""
         t, cfg = cs.t, self.cfg
         cands = []
         if cs.informative and not math.isnan(cs.rho1):
@@ -114,17 +118,37 @@ class Redetector:
             return cands
         if t.missing >= cfg.global_after_frames:
             return cands + self.frame_candidates(frames, size, background)
-        return cands + self._around(frames, cs, size)
+        centres, radius = self._region(cs, size)
+        grid = self._around(frames, cs, size, centres, radius)
+        if not cfg.regions_in_radius:
+            return cands + grid
+        near = self._regions_near(frames, size, background, centres, radius, occupied)
+        return cands + near + grid[: max(cfg.candidates - len(near), 0)]
 
-    def _around(
-        self, frames: FramePair, cs: ColourStep, size: tuple[float, float]
+    def _regions_near(
+        self,
+        frames: FramePair,
+        size: tuple[float, float],
+        background: BackgroundSource,
+        centres: list[tuple[float, float]],
+        radius: float,
+        occupied: tuple[BBox, ...],
     ) -> list[tuple[float, float]]:
-        """The widening region's candidates, shared between the prediction and the last clean
-        measurement (a target that turned or stopped while hidden is near where it was last
-        seen, not ahead)."""
+        """The whole-frame search's places (:meth:`frame_candidates`) within ``radius`` of one of
+        ``centres`` and inside none of the ``occupied`` boxes."""
+        return [
+            c
+            for c in self.frame_candidates(frames, size, background)
+            if any(math.hypot(c[0] - o[0], c[1] - o[1]) <= radius for o in centres)
+            and not any(b.x <= c[0] <= b.x2 and b.y <= c[1] <= b.y2 for b in occupied)
+        ]
+
+    def _region(
+        self, cs: ColourStep, size: tuple[float, float]
+    ) -> tuple[list[tuple[float, float]], float]:
+        """The widening region: its centres (the prediction, and the last clean measurement
+        where that lies over half the target's smaller side away) and its radius, px."""
         t, cfg = cs.t, self.cfg
-        H, W = frames.shape
-        turn = t.missing // cfg.every_frames
         speed = max(recent_speed(t), t.speed) if cfg.last_seen else 0.0
         rate = max(cfg.radius_px_per_frame, speed)
         radius = 0.5 * math.hypot(*size) + rate * t.missing
@@ -134,6 +158,21 @@ class Redetector:
             size
         ):
             centres.append(seen)
+        return centres, radius
+
+    def _around(
+        self,
+        frames: FramePair,
+        cs: ColourStep,
+        size: tuple[float, float],
+        centres: list[tuple[float, float]],
+        radius: float,
+    ) -> list[tuple[float, float]]:
+        """The widening region's grid of candidates, shared between its centres (a target that
+        turned or stopped while hidden is near where it was last seen, not ahead)."""
+        t, cfg = cs.t, self.cfg
+        H, W = frames.shape
+        turn = t.missing // cfg.every_frames
         per = -(-cfg.candidates // len(centres))
         out: list[tuple[float, float]] = []
         for c0 in centres:

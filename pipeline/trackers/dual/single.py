@@ -141,7 +141,8 @@ def _filter(
         d = a.detect(t.appearance, frames, mode, c, size, with_scale=False)
         if d.psr > best.psr:
             best = d
-    best, redetected = _redetect(dual, frames, cs, mode, best, background)
+    occupied = tuple(b for b, _ in others)
+    best, redetected = _redetect(dual, frames, cs, mode, best, background, occupied)
     if not redetected and a.with_scale(frames.index):
         best = a.rescale(t.appearance, best, frames, mode)
         best = _anchored(dual, t, best, frames, mode, others)
@@ -176,12 +177,14 @@ def _redetect(
     mode: str,
     best: Detection,
     background: BackgroundSource,
+    occupied: tuple[BBox, ...] = (),
 ) -> tuple[Detection, bool]:
     """A missing target is searched for at the re-detector's candidates, unless the filter
     finds it where rule 7 takes it back (a confident peak elsewhere in the window, on something
     the filter learned while the target was hidden, does not stop the search); with
-    ``redetect.first_model``, by its first frame's filter too. Returns the best detection and
-    whether the search found it."""
+    ``redetect.first_model``, by its first frame's filter too; ``occupied`` are the other
+    targets' boxes this frame (the detector's regions inside them are not tried near the
+    target). Returns the best detection and whether the search found it."""
     t, a = cs.t, dual.appearance
     if t.missing == 0 or dual.redetector is None or a is None or t.appearance is None:
         return best, False
@@ -190,7 +193,7 @@ def _redetect(
         return best, False
     size, redetected = t.app_size, False
     models, found = _search_models(dual, t), t.appearance
-    for c in dual.redetector.candidates(frames, cs, size, background):
+    for c in dual.redetector.candidates(frames, cs, size, background, occupied):
         for model in models:
             d = a.detect(model, frames, mode, c, size, with_scale=False)
             if d.psr > best.psr:
