@@ -625,28 +625,36 @@ def test_bad_configs_rejected(item):
     assert DualConfig().size.scale_rate == 0.2
 
 
-def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_background():
-    """Candidates for a target lost anywhere: against the frame's own spatial background a faint
-    person on a textured ground is missed or misplaced (the texture raises the threshold); against
-    the sequence's he is the one candidate, at his centre."""
+def _walking_scene(seed: int, rows: slice, cols: tuple[int, int], warmth: float):
+    """A textured ground (25 frames, noise 2 grey levels) where a patch ``warmth`` grey levels
+    warmer (``rows``, and columns ``cols`` from a 22 px wide walker's left edge at ``20 + 10 k``)
+    walks right at 10 px a frame: the sequence's background and frame 13 (the walker's left edge
+    at 140)."""
     import cv2
 
     from pipeline.io.sequence import FramePair
     from pipeline.stages.detection import DetectionConfig, quantile_background
-    from pipeline.tracker_config import RedetectConfig
-    from pipeline.trackers.dual.redetect import Redetector
 
-    rng = np.random.default_rng(11)
-    ground = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 3)  # textured ground
+    rng = np.random.default_rng(seed)
+    ground = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 3)
     frames = []
     for k in range(25):
         img = ground + rng.normal(0, 2, ground.shape)
         x = 20 + 10 * k
-        img[80:136, x : x + 22] += 12
+        img[rows, x + cols[0] : x + cols[1]] += warmth
         frames.append(np.clip(img, 0, 255).astype(np.uint8))
+    return quantile_background(frames, DetectionConfig()), FramePair(13, None, frames[12])
+
+
+def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_background():
+    """Candidates for a target lost anywhere: against the frame's own spatial background a faint
+    person on a textured ground is missed or misplaced (the texture raises the threshold); against
+    the sequence's he is the one candidate, at his centre."""
+    from pipeline.tracker_config import RedetectConfig
+    from pipeline.trackers.dual.redetect import Redetector
+
+    bg, fp = _walking_scene(11, slice(80, 136), (0, 22), 12)  # a faint person, textured ground
     search = Redetector(RedetectConfig(candidates=4))
-    bg = quantile_background(frames, DetectionConfig())
-    fp = FramePair(13, None, frames[12])
     truth = (20 + 120 + 11, 108)
     with_bg = search.frame_candidates(fp, (22, 56), bg)
     assert len(with_bg) == 1 and with_bg[0] == pytest.approx(truth, abs=2.0)
@@ -659,23 +667,10 @@ def test_the_whole_frame_search_tries_a_fragment_of_the_target():
     temperature) gives the detector a region of a tenth of its box: the search tries it (the
     filter's window around it holds the whole target); taking only regions of about the
     target's size, it tried nothing."""
-    import cv2
-
-    from pipeline.io.sequence import FramePair
-    from pipeline.stages.detection import DetectionConfig, quantile_background
     from pipeline.tracker_config import RedetectConfig
     from pipeline.trackers.dual.redetect import Redetector
 
-    rng = np.random.default_rng(5)
-    ground = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 3)
-    frames = []
-    for k in range(25):
-        img = ground + rng.normal(0, 2, ground.shape)
-        x = 20 + 10 * k
-        img[90:102, x + 7 : x + 15] += 40  # the warm 8 x 12 px torso of a 22 x 56 px target
-        frames.append(np.clip(img, 0, 255).astype(np.uint8))
-    bg = quantile_background(frames, DetectionConfig())
-    fp = FramePair(13, None, frames[12])
+    bg, fp = _walking_scene(5, slice(90, 102), (7, 15), 40)  # an 8 x 12 px torso of 22 x 56
     torso = (20 + 120 + 11, 96)
     found = Redetector(RedetectConfig()).frame_candidates(fp, (22, 56), bg)
     assert len(found) == 1 and found[0] == pytest.approx(torso, abs=2.0)
@@ -688,27 +683,14 @@ def test_the_widening_search_tries_the_regions_within_its_radius_first():
     against the sequence background 50 px behind its prediction (it turned) is the first place
     tried, before the grid's; not where that place lies inside another target's box, and not
     at all with ``regions_in_radius`` off (the grid alone passes 6 px from it)."""
-    import cv2
-
-    from pipeline.io.sequence import FramePair
     from pipeline.stages import kalman
-    from pipeline.stages.detection import DetectionConfig, quantile_background
     from pipeline.tracker_config import RedetectConfig
     from pipeline.trackers.dual.colour import ColourStep
     from pipeline.trackers.dual.redetect import Redetector
     from pipeline.trackers.dual.state import DualTarget
     from pipeline.types import BBox
 
-    rng = np.random.default_rng(3)
-    ground = cv2.GaussianBlur(rng.normal(90, 25, (240, 320)), (0, 0), 3)
-    frames = []
-    for k in range(25):
-        img = ground + rng.normal(0, 2, ground.shape)
-        x = 20 + 10 * k
-        img[80:136, x : x + 22] += 40
-        frames.append(np.clip(img, 0, 255).astype(np.uint8))
-    bg = quantile_background(frames, DetectionConfig())
-    fp = FramePair(13, None, frames[12])
+    bg, fp = _walking_scene(3, slice(80, 136), (0, 22), 40)
     person = (20 + 120 + 11, 108)
     t = DualTarget.__new__(DualTarget)
     for k, v in {
