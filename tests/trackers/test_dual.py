@@ -625,11 +625,11 @@ def test_bad_configs_rejected(item):
     assert DualConfig().size.scale_rate == 0.2
 
 
-def _walking_scene(seed: int, rows: slice, cols: tuple[int, int], warmth: float):
+def _walking_scene(seed: int, rows: slice, cols: tuple[int, int], warmth: float, *more):
     """A textured ground (25 frames, noise 2 grey levels) where a patch ``warmth`` grey levels
     warmer (``rows``, and columns ``cols`` from a 22 px wide walker's left edge at ``20 + 10 k``)
-    walks right at 10 px a frame: the sequence's background and frame 13 (the walker's left edge
-    at 140)."""
+    walks right at 10 px a frame (and each of ``more``, ``(rows, cols, warmth)`` patches walking
+    with it): the sequence's background and frame 13 (the walker's left edge at 140)."""
     import cv2
 
     from pipeline.io.sequence import FramePair
@@ -641,7 +641,8 @@ def _walking_scene(seed: int, rows: slice, cols: tuple[int, int], warmth: float)
     for k in range(25):
         img = ground + rng.normal(0, 2, ground.shape)
         x = 20 + 10 * k
-        img[rows, x + cols[0] : x + cols[1]] += warmth
+        for r, c, warm in ((rows, cols, warmth), *more):
+            img[r, x + c[0] : x + c[1]] += warm
         frames.append(np.clip(img, 0, 255).astype(np.uint8))
     return quantile_background(frames, DetectionConfig()), FramePair(13, None, frames[12])
 
@@ -724,6 +725,47 @@ def test_the_widening_search_tries_the_regions_within_its_radius_first():
     for cands in (held, grid_only):
         assert not any(abs(c[0] - person[0]) < 2 and abs(c[1] - person[1]) < 2 for c in cands)
     assert held == grid_only
+
+
+def test_the_search_detects_once_a_frame_and_takes_the_regions_near_before_the_cap(monkeypatch):
+    """Two missing targets searching one frame run the detector once (a new frame once more);
+    with one place a search, the whole-frame search takes the region of the target's size 150 px
+    away, and the widening search the part of the target beside its prediction."""
+    import dataclasses
+
+    from pipeline.stages import detection, kalman
+    from pipeline.tracker_config import RedetectConfig
+    from pipeline.trackers.dual.colour import ColourStep
+    from pipeline.trackers.dual.redetect import Redetector
+    from pipeline.trackers.dual.state import DualTarget
+
+    bg, fp = _walking_scene(5, slice(90, 102), (7, 15), 40, (slice(80, 136), (150, 172), 40))
+    torso, far = (151, 96), (301, 108)
+    calls = []
+    real = detection.detect
+    monkeypatch.setattr(detection, "detect", lambda *a, **k: calls.append(1) or real(*a, **k))
+    search = Redetector(RedetectConfig(candidates=1))
+    assert search.frame_candidates(fp, (22, 56), bg)[0] == pytest.approx(far, abs=2.0)
+    t = DualTarget.__new__(DualTarget)
+    for k, v in {"missing": 2, "speed": 0.0, "history": ()}.items():
+        object.__setattr__(t, k, v)
+    y0 = (torso[0] + 10.0, 108.0)
+    cs = ColourStep(
+        t,
+        kalman.GaussianState(np.zeros(8), np.eye(8)),
+        y0,
+        y0,
+        float("nan"),
+        False,
+        0.0,
+        None,
+        (0, 0),
+        0,
+    )
+    assert search.candidates(fp, cs, (22, 56), bg)[0] == pytest.approx(torso, abs=2.0)
+    assert len(calls) == 1
+    search.frame_candidates(dataclasses.replace(fp, infrared=fp.infrared.copy()), (22, 56), bg)
+    assert len(calls) == 2
 
 
 def test_the_runner_gives_the_dual_tracker_the_sequence_background(scene):

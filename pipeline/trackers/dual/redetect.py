@@ -134,14 +134,16 @@ class Redetector:
         radius: float,
         occupied: tuple[BBox, ...],
     ) -> list[tuple[float, float]]:
-        """The whole-frame search's places (:meth:`frame_candidates`) within ``radius`` of one of
-        ``centres`` and inside none of the ``occupied`` boxes."""
-        return [
+        """The centres of the detector's regions of the target's size (:meth:`_sized`) within
+        ``radius`` of one of ``centres`` and inside none of the ``occupied`` boxes, the closest
+        in size first, at most ``candidates``."""
+        near = [
             c
-            for c in self.frame_candidates(frames, size, background)
+            for c in self._sized(frames, size, background)
             if any(math.hypot(c[0] - o[0], c[1] - o[1]) <= radius for o in centres)
             and not any(b.x <= c[0] <= b.x2 and b.y <= c[1] <= b.y2 for b in occupied)
         ]
+        return near[: self.cfg.candidates]
 
     def _region(
         self, cs: ColourStep, size: tuple[float, float]
@@ -190,15 +192,33 @@ class Redetector:
         self, frames: FramePair, size: tuple[float, float], background: BackgroundSource = None
     ) -> list[tuple[float, float]]:
         """Centres of the detector's regions in the IR frame (the visible one without IR) of
-        ``min_region_area_ratio`` to four times the target's area, the closest in size first:
-        where a lost target may be anywhere. ``background`` is the detector's (the sequence's, or a
-        function returning it, read only here)."""
+        ``min_region_area_ratio`` to four times the target's area, the closest in size first, at
+        most ``candidates``: where a lost target may be anywhere. ``background`` is the
+        detector's (the sequence's, or a function returning it, read only here)."""
+        return self._sized(frames, size, background)[: self.cfg.candidates]
+
+    def _sized(
+        self, frames: FramePair, size: tuple[float, float], background: BackgroundSource
+    ) -> list[tuple[float, float]]:
+        """The centres of all the frame's regions of ``min_region_area_ratio`` to four times the
+        target's area, the closest in size first."""
+        area = max(size[0] * size[1], 1.0)
+        lo = self.cfg.min_region_area_ratio
+        near = [r for r in self._regions(frames, background) if lo <= r.box.area / area <= 4.0]
+        near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
+        return [r.box.center for r in near]
+
+    def _regions(
+        self, frames: FramePair, background: BackgroundSource
+    ) -> tuple[detection.Region, ...]:
+        """The detector's regions of this frame, detected once however many missing targets
+        search it (the last frame's are kept, with the image and background they came from)."""
         img = frames.infrared if frames.infrared is not None else frames.visible
         assert img is not None
         bg = background() if callable(background) else background
+        last = self.__dict__.get("_last")
+        if last is not None and last[0] is img and last[1] is bg:
+            return last[2]
         found = detection.detect(img, self.detection, bg).regions
-        area = max(size[0] * size[1], 1.0)
-        lo = self.cfg.min_region_area_ratio
-        near = [r for r in found if lo <= r.box.area / area <= 4.0]
-        near.sort(key=lambda r: abs(math.log(max(r.box.area, 1.0) / area)))
-        return [r.box.center for r in near[: self.cfg.candidates]]
+        self.__dict__["_last"] = (img, bg, found)  # a cache beside the frozen fields
+        return found
