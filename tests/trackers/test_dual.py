@@ -647,6 +647,20 @@ def _walking_scene(seed: int, rows: slice, cols: tuple[int, int], warmth: float,
     return quantile_background(frames, DetectionConfig()), FramePair(13, None, frames[12])
 
 
+def _missing_step(missing: int, speed: float, history: tuple, y0: tuple[float, float]):
+    """The colour step of a target missing for ``missing`` frames, predicted at ``y0`` (its mean
+    shift there too, without colour), with its speed and clean-measurement history."""
+    from pipeline.stages import kalman
+    from pipeline.trackers.dual.colour import ColourStep
+    from pipeline.trackers.dual.state import DualTarget
+
+    t = DualTarget.__new__(DualTarget)
+    for k, v in {"missing": missing, "speed": speed, "history": history}.items():
+        object.__setattr__(t, k, v)
+    prior = kalman.GaussianState(np.zeros(8), np.eye(8))
+    return ColourStep(t, prior, y0, y0, float("nan"), False, 0.0, None, (0, 0), 0)
+
+
 def test_the_whole_frame_search_finds_a_faint_target_against_the_sequence_background():
     """Candidates for a target lost anywhere: against the frame's own spatial background a faint
     person on a textured ground is missed or misplaced (the texture raises the threshold); against
@@ -684,35 +698,14 @@ def test_the_widening_search_tries_the_regions_within_its_radius_first():
     against the sequence background 50 px behind its prediction (it turned) is the first place
     tried, before the grid's; not where that place lies inside another target's box, and not
     at all with ``regions_in_radius`` off (the grid alone passes 6 px from it)."""
-    from pipeline.stages import kalman
     from pipeline.tracker_config import RedetectConfig
-    from pipeline.trackers.dual.colour import ColourStep
     from pipeline.trackers.dual.redetect import Redetector
-    from pipeline.trackers.dual.state import DualTarget
     from pipeline.types import BBox
 
     bg, fp = _walking_scene(3, slice(80, 136), (0, 22), 40)
     person = (20 + 120 + 11, 108)
-    t = DualTarget.__new__(DualTarget)
-    for k, v in {
-        "missing": 4,
-        "speed": 10.0,
-        "history": ((8.0, 161.0, 108.0, 22.0, 56.0), (9.0, 171.0, 108.0, 22.0, 56.0)),
-    }.items():
-        object.__setattr__(t, k, v)
-    y0 = (person[0] + 50.0, 108.0)  # the prediction, 50 px past him
-    cs = ColourStep(
-        t,
-        kalman.GaussianState(np.zeros(8), np.eye(8)),
-        y0,
-        y0,
-        float("nan"),
-        False,
-        0.0,
-        None,
-        (0, 0),
-        0,
-    )
+    history = ((8.0, 161.0, 108.0, 22.0, 56.0), (9.0, 171.0, 108.0, 22.0, 56.0))
+    cs = _missing_step(4, 10.0, history, (person[0] + 50.0, 108.0))  # predicted 50 px past him
     search = Redetector(RedetectConfig())
     found = search.candidates(fp, cs, (22, 56), bg)
     assert found[0] == pytest.approx(person, abs=2.0)
@@ -733,11 +726,9 @@ def test_the_search_detects_once_a_frame_and_takes_the_regions_near_before_the_c
     away, and the widening search the part of the target beside its prediction."""
     import dataclasses
 
-    from pipeline.stages import detection, kalman
+    from pipeline.stages import detection
     from pipeline.tracker_config import RedetectConfig
-    from pipeline.trackers.dual.colour import ColourStep
     from pipeline.trackers.dual.redetect import Redetector
-    from pipeline.trackers.dual.state import DualTarget
 
     bg, fp = _walking_scene(5, slice(90, 102), (7, 15), 40, (slice(80, 136), (150, 172), 40))
     torso, far = (151, 96), (301, 108)
@@ -746,22 +737,7 @@ def test_the_search_detects_once_a_frame_and_takes_the_regions_near_before_the_c
     monkeypatch.setattr(detection, "detect", lambda *a, **k: calls.append(1) or real(*a, **k))
     search = Redetector(RedetectConfig(candidates=1))
     assert search.frame_candidates(fp, (22, 56), bg)[0] == pytest.approx(far, abs=2.0)
-    t = DualTarget.__new__(DualTarget)
-    for k, v in {"missing": 2, "speed": 0.0, "history": ()}.items():
-        object.__setattr__(t, k, v)
-    y0 = (torso[0] + 10.0, 108.0)
-    cs = ColourStep(
-        t,
-        kalman.GaussianState(np.zeros(8), np.eye(8)),
-        y0,
-        y0,
-        float("nan"),
-        False,
-        0.0,
-        None,
-        (0, 0),
-        0,
-    )
+    cs = _missing_step(2, 0.0, (), (torso[0] + 10.0, 108.0))
     assert search.candidates(fp, cs, (22, 56), bg)[0] == pytest.approx(torso, abs=2.0)
     assert len(calls) == 1
     search.frame_candidates(dataclasses.replace(fp, infrared=fp.infrared.copy()), (22, 56), bg)
