@@ -141,6 +141,16 @@ class RedetectConfig(Section):
         the target's speed (the larger of its net displacement a frame and its mean step, which
         a target walking to and fro keeps high) where that exceeds ``radius_px_per_frame``, so
         that a target that turned or stopped while hidden is found where it was; default True.
+    unknown_speed_px_per_frame : float
+        The widening region of a target whose speed is not known yet (fewer than two clean
+        measurements, none of them apart: given and lost at once) grows at least this fast,
+        px per frame, >= 0; default 10 (0: at ``radius_px_per_frame``). It is about twice the
+        motion model's prior deviation of a new target's velocity (``kalman``'s
+        ``initial_velocity_std_px_per_frame``, 5): a small target faster than its filter's
+        window on its second frame (a walker 8 px wide at 8 px a frame) is otherwise outrun by
+        a region widening at 3 px a frame, and coasts at rest until the whole-frame search.
+        Raising it spreads the region's places (and its detector regions) wider on such a
+        target's first searches.
     global_after_frames : int
         Missing frames after which the whole frame is searched, >= 1; default 12.
     first_model : bool
@@ -186,6 +196,7 @@ class RedetectConfig(Section):
 
     radius_px_per_frame: float = param(3.0, ge=0)
     last_seen: bool = True
+    unknown_speed_px_per_frame: float = param(10.0, ge=0)
     global_after_frames: int = param(12, ge=1)
     first_model: bool = True
     every_frames: int = param(2, ge=1)

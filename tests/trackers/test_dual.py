@@ -720,6 +720,32 @@ def test_the_widening_search_tries_the_regions_within_its_radius_first():
     assert held == grid_only
 
 
+def test_a_target_lost_before_its_speed_is_known_is_searched_at_the_prior_speed():
+    """A target given at frame 5 and lost on its next frame (one clean measurement, no speed),
+    missing for 8 frames at its given place while it walked on at 10 px a frame: the region
+    widens at ``unknown_speed_px_per_frame`` and takes in the person 80 px on; at 3 px a frame
+    (the rule off) it does not. A target known to stand still widens at 3 px a frame."""
+    import math
+
+    from pipeline.tracker_config import RedetectConfig
+    from pipeline.trackers.dual.redetect import Redetector
+
+    bg, fp = _walking_scene(3, slice(80, 136), (0, 22), 40)
+    person, given = (20 + 120 + 11, 108), (20 + 40 + 11.0, 108.0)
+    cs = _missing_step(8, 0.0, ((5.0, *given, 22.0, 56.0),), given)
+    half = 0.5 * math.hypot(22, 56)
+    search = Redetector(RedetectConfig())
+    assert search._region(cs, (22, 56))[1] == pytest.approx(half + 10 * 8)
+    found = search.candidates(fp, cs, (22, 56), bg)
+    assert found[0] == pytest.approx(person, abs=2.0)
+    off = Redetector(RedetectConfig(unknown_speed_px_per_frame=0))
+    assert off._region(cs, (22, 56))[1] == pytest.approx(half + 3 * 8)
+    cands = off.candidates(fp, cs, (22, 56), bg)
+    assert not any(abs(c[0] - person[0]) < 2 and abs(c[1] - person[1]) < 2 for c in cands)
+    still = _missing_step(8, 0.0, ((4.0, *given, 22.0, 56.0), (5.0, *given, 22.0, 56.0)), given)
+    assert search._region(still, (22, 56))[1] == pytest.approx(half + 3 * 8)
+
+
 def test_the_search_detects_once_a_frame_and_takes_the_regions_near_before_the_cap(monkeypatch):
     """Two missing targets searching one frame run the detector once (a new frame once more);
     with one place a search, the whole-frame search takes the region of the target's size 150 px

@@ -149,10 +149,13 @@ class Redetector:
         self, cs: ColourStep, size: tuple[float, float]
     ) -> tuple[list[tuple[float, float]], float]:
         """The widening region: its centres (the prediction, and the last clean measurement
-        where that lies over half the target's smaller side away) and its radius, px."""
+        where that lies over half the target's smaller side away) and its radius, px, widening
+        at the target's speed or, where that is not known yet, ``unknown_speed_px_per_frame``."""
         t, cfg = cs.t, self.cfg
         speed = max(recent_speed(t), t.speed) if cfg.last_seen else 0.0
         rate = max(cfg.radius_px_per_frame, speed)
+        if len(t.history) < 2 and t.speed == 0.0:
+            rate = max(rate, cfg.unknown_speed_px_per_frame)
         radius = 0.5 * math.hypot(*size) + rate * t.missing
         centres = [cs.y0]
         seen = self.last_seen(t)
