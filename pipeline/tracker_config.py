@@ -143,9 +143,9 @@ class RedetectConfig(Section):
         that a target that turned or stopped while hidden is found where it was; default True.
     unknown_speed_px_per_frame : float
         The widening region of a target whose speed is not known yet (fewer than two clean
-        measurements, none of them apart: given and lost at once) grows at least this fast,
-        px per frame, >= 0; default 10 (0: at ``radius_px_per_frame``). It is about twice the
-        motion model's prior deviation of a new target's velocity (``kalman``'s
+        measurements and no speed from before: given, and lost on its next frame) grows at
+        least this fast, px per frame, >= 0; default 10 (0: at ``radius_px_per_frame``). It is
+        about twice the motion model's prior deviation of a new target's velocity (``kalman``'s
         ``initial_velocity_std_px_per_frame``, 5): a small target faster than its filter's
         window on its second frame (a walker 8 px wide at 8 px a frame) is otherwise outrun by
         a region widening at 3 px a frame, and coasts at rest until the whole-frame search.
