@@ -152,7 +152,9 @@ class RedetectConfig(Section):
         Raising it spreads the region's places (and its detector regions) wider on such a
         target's first searches.
     global_after_frames : int
-        Missing frames after which the whole frame is searched, >= 1; default 12.
+        Missing frames after which the whole frame is searched, >= 1; default 12. It tries
+        the detector's regions, except those inside another target's box this frame (a
+        look-alike another target holds is that target).
     first_model : bool
         The search also tries, at each place, the target's filter as trained on its first
         frame (for a target walking in, on the frame it is whole by), and takes the better

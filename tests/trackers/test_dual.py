@@ -866,3 +866,26 @@ def test_no_kernel_is_compiled_or_loaded_after_the_engine_is_built(scene):
         check=True,
     )
     assert out.stdout == ""
+
+
+def test_the_whole_frame_search_leaves_out_the_places_other_targets_hold():
+    """A target missing for 12 frames is looked for over the whole frame: a person there is
+    tried, unless another target's box holds him this frame (a look-alike another target
+    follows is that target); a second person, free, is still tried."""
+    from pipeline.tracker_config import RedetectConfig
+    from pipeline.trackers.dual.redetect import Redetector
+    from pipeline.types import BBox
+
+    bg, fp = _walking_scene(5, slice(80, 136), (0, 22), 40, (slice(80, 136), (150, 172), 40))
+    held, free = (151, 108), (301, 108)
+    search = Redetector(RedetectConfig())
+    cs = _missing_step(12, 0.0, (), (60.0, 108.0))
+
+    def near(cands, p):
+        return any(abs(c[0] - p[0]) < 2 and abs(c[1] - p[1]) < 2 for c in cands)
+
+    everyone = search.candidates(fp, cs, (22, 56), bg)
+    assert near(everyone, held) and near(everyone, free)
+    other = BBox(held[0] - 15, 75, 30, 66)  # another target's box over the first person
+    left = search.candidates(fp, cs, (22, 56), bg, (other,))
+    assert not near(left, held) and near(left, free)

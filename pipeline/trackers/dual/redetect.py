@@ -109,7 +109,8 @@ class Redetector:
         (and around where the target was last seen; with ``regions_in_radius``, the detector's
         regions within it first) or, after ``global_after_frames``, the detector's regions of
         the whole frame. A region whose centre lies inside one of the ``occupied`` boxes (the
-        other targets' this frame) is not tried within the radius."""
+        other targets' this frame) is not tried, within the radius or over the whole frame: a
+        target's look-alike that another target holds is that target."""
         t, cfg = cs.t, self.cfg
         cands = []
         if cs.informative and not math.isnan(cs.rho1):
@@ -117,7 +118,7 @@ class Redetector:
         if t.missing % cfg.every_frames:
             return cands
         if t.missing >= cfg.global_after_frames:
-            return cands + self.frame_candidates(frames, size, background)
+            return cands + self.frame_candidates(frames, size, background, occupied)
         centres, radius = self._region(cs, size)
         grid = self._around(frames, cs, size, centres, radius)
         if not cfg.regions_in_radius:
@@ -141,7 +142,7 @@ class Redetector:
             c
             for c in self._sized(frames, size, background)
             if any(math.hypot(c[0] - o[0], c[1] - o[1]) <= radius for o in centres)
-            and not any(b.x <= c[0] <= b.x2 and b.y <= c[1] <= b.y2 for b in occupied)
+            and not _inside_any(c, occupied)
         ]
         return near[: self.cfg.candidates]
 
@@ -192,13 +193,19 @@ class Redetector:
         return (t.history[-1][1], t.history[-1][2])
 
     def frame_candidates(
-        self, frames: FramePair, size: tuple[float, float], background: BackgroundSource = None
+        self,
+        frames: FramePair,
+        size: tuple[float, float],
+        background: BackgroundSource = None,
+        occupied: tuple[BBox, ...] = (),
     ) -> list[tuple[float, float]]:
         """Centres of the detector's regions in the IR frame (the visible one without IR) of
-        ``min_region_area_ratio`` to four times the target's area, the closest in size first, at
-        most ``candidates``: where a lost target may be anywhere. ``background`` is the
-        detector's (the sequence's, or a function returning it, read only here)."""
-        return self._sized(frames, size, background)[: self.cfg.candidates]
+        ``min_region_area_ratio`` to four times the target's area and inside none of the
+        ``occupied`` boxes, the closest in size first, at most ``candidates``: where a lost
+        target may be anywhere. ``background`` is the detector's (the sequence's, or a function
+        returning it, read only here)."""
+        free = [c for c in self._sized(frames, size, background) if not _inside_any(c, occupied)]
+        return free[: self.cfg.candidates]
 
     def _sized(
         self, frames: FramePair, size: tuple[float, float], background: BackgroundSource
@@ -225,3 +232,8 @@ class Redetector:
         found = detection.detect(img, self.detection, bg).regions
         self.__dict__["_last"] = (img, bg, found)  # a cache beside the frozen fields
         return found
+
+
+def _inside_any(c: tuple[float, float], boxes: tuple[BBox, ...]) -> bool:
+    """Whether the point ``c`` lies inside (or on the edge of) one of ``boxes``."""
+    return any(b.x <= c[0] <= b.x2 and b.y <= c[1] <= b.y2 for b in boxes)
