@@ -130,6 +130,14 @@ class BBox:
     def with_center(self, cx: float, cy: float) -> BBox:
         return BBox.from_center(cx, cy, self.w, self.h)
 
+    def contains(self, x: float, y: float) -> bool:
+        """Whether the point ``(x, y)`` lies inside the box or on its edge.
+
+        >>> BBox(0, 0, 10, 5).contains(10, 2.5), BBox(0, 0, 10, 5).contains(10.5, 2.5)
+        (True, False)
+        """
+        return self.x <= x <= self.x2 and self.y <= y <= self.y2
+
     def intersect(self, other: BBox) -> BBox:
         x1, y1 = max(self.x, other.x), max(self.y, other.y)
         x2, y2 = min(self.x2, other.x2), min(self.y2, other.y2)

@@ -922,11 +922,7 @@ def visible_supported(
     ok, bad = discriminate(regions_from_contours(contours, cfg.min_area_px), cfg)
 
     def apart(r: Region) -> bool:
-        return not any(
-            (f.box.x <= r.centroid[0] <= f.box.x2 and f.box.y <= r.centroid[1] <= f.box.y2)
-            or (r.box.x <= f.centroid[0] <= r.box.x2 and r.box.y <= f.centroid[1] <= r.box.y2)
-            for f in found
-        )
+        return not any(f.box.contains(*r.centroid) or r.box.contains(*f.centroid) for f in found)
 
     return (
         [replace(r, reason=RegionReason.VISIBLE) for r in ok if apart(r)],

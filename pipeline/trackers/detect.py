@@ -257,7 +257,8 @@ class DetectAndAssociate:
             j: [
                 i
                 for i, (t, p) in enumerate(zip(state.tracks, priors, strict=True))
-                if t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
+                if t.status != TargetStatus.TENTATIVE
+                and r.box.contains(float(p.x[0]), float(p.x[1]))
             ]
             for j, r in enumerate(regions)
         }
@@ -551,7 +552,7 @@ class DetectAndAssociate:
         for j in fm.unmatched:
             r = fm.regions[j]
             if j in fm.group or any(
-                t.status != TargetStatus.TENTATIVE and _contains(r.box, p.x[:2])
+                t.status != TargetStatus.TENTATIVE and r.box.contains(float(p.x[0]), float(p.x[1]))
                 for t, p in zip(state.tracks, fm.priors, strict=True)
             ):
                 continue  # a blob around a known target (merged targets): not a new one
@@ -637,14 +638,10 @@ def _relink(
     return best
 
 
-def _contains(box: BBox, c: np.ndarray) -> bool:
-    return box.x <= float(c[0]) <= box.x2 and box.y <= float(c[1]) <= box.y2
-
-
 def _blob_containing(prior: kalman.GaussianState, regions: Sequence[Region]) -> int | None:
     """Index of the detected region whose box holds the predicted centre (None if none does)."""
     for k, r in enumerate(regions):
-        if _contains(r.box, prior.x[:2]):
+        if r.box.contains(float(prior.x[0]), float(prior.x[1])):
             return k
     return None
 

@@ -236,4 +236,4 @@ class Redetector:
 
 def _inside_any(c: tuple[float, float], boxes: tuple[BBox, ...]) -> bool:
     """Whether the point ``c`` lies inside (or on the edge of) one of ``boxes``."""
-    return any(b.x <= c[0] <= b.x2 and b.y <= c[1] <= b.y2 for b in boxes)
+    return any(b.contains(c[0], c[1]) for b in boxes)
