@@ -344,7 +344,7 @@ def main() -> int:
     table = readme_table(single, multi, real)
     speed_lines, _ = speed_section(speed_rows)
     minutes = (time.time() - t0) / 60
-    cmd = "python tools/benchmarks.py" + (" --quick" if a.quick else "")
+    cmd = " ".join(["python tools/benchmarks.py", *sys.argv[1:]])
     lines = [
         "# Benchmarks",
         "",
