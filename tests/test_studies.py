@@ -482,6 +482,58 @@ def test_refusals_class_the_refused_detection_by_its_distance_to_the_truth():
     assert [ln.split(" | ")[0] for ln in lines[5:]] == ["| psr:0-7", "| psr:7-9", "| psr:>=20"]
 
 
+def test_refusals_say_whether_the_search_reached_a_coasting_or_lost_target():
+    """The reach table: of the coasting and lost frames of a target in view, one with the
+    filter's detection within 20 px of the truth (even where the reported box is there too),
+    one with only the reported box there, and two with neither (a lost target without a box);
+    a measured frame, a frame under 0.25 visible and a frame without truth are not counted;
+    without visibility every frame with truth counts. The tool's doctests pass."""
+    import doctest
+
+    from pipeline.trackers.dual.decide import Case, Rule
+    from pipeline.types import BBox, DecisionLabel, FrameResult, TargetResult, TargetStatus
+
+    ref = _tool("refusals")
+    assert doctest.testmod(ref).failed == 0
+    truth = {1: np.array([[100.0, 50.0, 10.0, 20.0]] * 7 + [[np.nan] * 4])}  # centre 105, 60
+    vis = {1: np.array([1.0, 1.0, 1.0, 0.3, 1.0, 0.1, 1.0, 1.0])}
+
+    def at(dx):
+        return None if dx is None else BBox.from_center(105 + dx, 60, 10, 20)
+
+    def frame(n, case, rule, found_dx, box_dx):
+        r = TargetResult(
+            1,
+            at(box_dx),
+            TargetStatus.LOST if case == Case.LOST else TargetStatus.OCCLUDED_PARTIAL,
+            "kalman",
+            overlays={} if found_dx is None else {"appearance": at(found_dx)},
+            decision=DecisionLabel(case, rule, rule.text(missing=40)),
+        )
+        return FrameResult(n, (r,))
+
+    frames = [
+        frame(1, Case.COAST, Rule.PARTIAL_EVIDENCE, 3.0, 0.0),  # filter (the box is there too)
+        frame(2, Case.COAST, Rule.ON_BACKGROUND, 60.0, -15.0),  # prediction
+        frame(3, Case.COAST, Rule.PARTIAL_EVIDENCE, None, 45.0),  # neither
+        frame(4, Case.LOST, Rule.MISSING_TOO_LONG, 30.0, None),  # neither, lost, 0.3 visible
+        frame(5, Case.APPEARANCE, Rule.APPEARANCE_OVER_CONTOUR, 0.0, 0.0),  # measured
+        frame(6, Case.COAST, Rule.PARTIAL_EVIDENCE, 0.0, 0.0),  # hidden (0.1)
+        frame(8, Case.COAST, Rule.PARTIAL_EVIDENCE, 0.0, 0.0),  # no truth
+    ]
+    counts = ref.reach(frames, truth, vis)
+    assert counts == {
+        ("coast", "filter"): 1,
+        ("coast", "prediction"): 1,
+        ("coast", "neither"): 1,
+        ("lost", "neither"): 1,
+    }
+    assert ref.reach(frames, truth)[("coast", "filter")] == 2  # frame 6 counts without visibility
+    lines = ref.reach_table(counts)
+    assert lines[2] == "| coast | 3 | 1 (33%) | 1 (33%) | 1 (33%) |"
+    assert lines[3] == "| lost | 1 | 0 (0%) | 0 (0%) | 1 (100%) |"
+
+
 def test_paired_runs_compares_two_runs_scene_by_scene(tmp_path, capsys):
     """``tools/paired_runs.py``: the paired difference of two runs' reports with its standard
     error, the scenes that moved, the ones that lost most; unscored scenes left out, IDF1 and

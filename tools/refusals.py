@@ -17,7 +17,23 @@ distance to the truth's:
 
 Printed by coast rule, and for every coast by the filter's PSR band, as counts and the share
 ``on``. A refusal rule whose refused detections are mostly ``on`` refuses the target; one whose
-detections are mostly ``off`` earns its place. Usage::
+detections are mostly ``off`` earns its place.
+
+A second table asks whether anything looked where the target was, on the coasting and the lost
+target-frames of a target in view (visibility at least 0.25, where the sequence's ``scene.json``
+gives it; every frame with truth otherwise), each in the first class that holds (:func:`reach`):
+
+``filter``
+    the filter's detection within 20 px of the truth's centre: a cue saw the target and the
+    decision refused it (thresholds can win these back);
+``prediction``
+    the reported box (the prediction the target coasts on, or where a lost one was last
+    believed) within 20 px: the search started at the target and found nothing there;
+``neither``
+    the search was elsewhere: the prediction had left the target, and only a search that
+    reaches farther can find it again.
+
+Usage::
 
     python tools/refusals.py runs/dev/scenes --jobs 2
     python tools/refusals.py runs/dev/scenes --set dual.decider.background_share=0
@@ -93,7 +109,82 @@ def tally(frames, truth: dict[int, np.ndarray]) -> Counter:
     return out
 
 
-def _one(args: tuple[str, tuple[str, ...]]) -> Counter:
+REACH = ("filter", "prediction", "neither")
+NEAR_PX = 20.0  # the P@20 radius
+
+
+def reach(
+    frames, truth: dict[int, np.ndarray], visibility: dict[int, np.ndarray] | None = None
+) -> Counter:
+    """``(case, class)`` counts of one run's coasting and lost target-frames in view: ``case``
+    ``coast`` or ``lost``, ``class`` one of :data:`REACH` (see the module's doc). ``frames`` is
+    its :class:`~pipeline.types.FrameResult` list, ``truth[id]`` the ``(N, 4)`` truth boxes (NaN
+    rows: none), ``visibility[id]`` the ``(N,)`` visible share of each target (frames under 0.25
+    are left out; None or a missing id: every frame counts)."""
+    out: Counter = Counter()
+    for fr in frames:
+        for r in fr.targets:
+            d = r.decision
+            boxes = truth.get(r.id)
+            if d is None or str(d.case) not in ("coast", "lost") or boxes is None:
+                continue
+            k = fr.frame - 1
+            if k >= len(boxes) or np.isnan(boxes[k]).any():
+                continue
+            vis = (visibility or {}).get(r.id)
+            if vis is not None and k < len(vis) and vis[k] < 0.25:
+                continue
+            x, y, w, h = boxes[k]
+            centre = (x + w / 2, y + h / 2)
+            out[(str(d.case), _reach_class(r.overlays.get("appearance"), r.box, centre))] += 1
+    return out
+
+
+def _reach_class(found, box, centre: tuple[float, float]) -> str:
+    """The :data:`REACH` class of a frame: the filter's box ``found`` and the reported ``box``
+    (either may be None) against the truth's ``centre``.
+
+    Examples
+    --------
+    >>> from pipeline.types import BBox
+    >>> at = lambda cx: BBox.from_center(cx, 50, 10, 20)
+    >>> [_reach_class(f, b, (100, 50)) for f, b in ((at(110), at(150)), (at(150), at(85)),
+    ...                                           (None, at(150)), (at(150), None))]
+    ['filter', 'prediction', 'neither', 'neither']
+    """
+
+    def near(b) -> bool:
+        return b is not None and math.hypot(b.cx - centre[0], b.cy - centre[1]) <= NEAR_PX
+
+    if near(found):
+        return "filter"
+    return "prediction" if near(box) else "neither"
+
+
+def reach_table(counts: Counter) -> list[str]:
+    """The markdown table of ``counts`` (:func:`reach`): frames and shares of each class."""
+    lines = [
+        "| case | frames | filter on the target | prediction at it | neither |",
+        "|---|---|---|---|---|",
+    ]
+    for case in ("coast", "lost"):
+        n = [counts[(case, c)] for c in REACH]
+        total = sum(n)
+        if total:
+            cells = " | ".join(f"{v} ({v / total:.0%})" for v in n)
+            lines.append(f"| {case} | {total} | {cells} |")
+    return lines
+
+
+def _visibility(meta: dict) -> dict[int, np.ndarray] | None:
+    """Each target's visible share from a synthetic scene's ``scene.json`` (None without it)."""
+    vis = meta.get("visibility")
+    if not isinstance(vis, dict):
+        return None
+    return {int(k): np.asarray(v, float) for k, v in vis.items()}
+
+
+def _one(args: tuple[str, tuple[str, ...]]) -> tuple[Counter, Counter]:
     path, sets = args
     from pipeline.config import PipelineConfig, apply_overrides, parse_set
     from pipeline.io.sequence import open_sequence
@@ -103,8 +194,9 @@ def _one(args: tuple[str, tuple[str, ...]]) -> Counter:
     seq = open_sequence(path)
     truth = seq.truth.primary()
     if not truth:
-        return Counter()
-    return tally(track(seq, "dual", config=cfg), truth)
+        return Counter(), Counter()
+    frames = list(track(seq, "dual", config=cfg))
+    return tally(frames, truth), reach(frames, truth, _visibility(seq.meta))
 
 
 def table(counts: Counter) -> list[str]:
@@ -140,16 +232,20 @@ def main(argv: list[str] | None = None) -> int:
         print(f"refusals: no sequence folder in {a.root}", file=sys.stderr)
         return 2
     total: Counter = Counter()
+    reached: Counter = Counter()
     jobs = [(s, tuple(a.set)) for s in seqs]
     if a.jobs > 1:
         with ProcessPoolExecutor(a.jobs) as ex:
-            for c in ex.map(_one, jobs):
-                total.update(c)
+            results = list(ex.map(_one, jobs))
     else:
-        for j in jobs:
-            total.update(_one(j))
+        results = [_one(j) for j in jobs]
+    for c, r in results:
+        total.update(c)
+        reached.update(r)
     print(f"{len(seqs)} sequences; the filter's detection on coasting target-frames:\n")
     print("\n".join(table(total)))
+    print("\nWhere the search was on the coasting and lost target-frames in view:\n")
+    print("\n".join(reach_table(reached)))
     return 0
 
 
