@@ -54,7 +54,10 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.eval import MIN_VISIBILITY  # the share of a target in view (0.25)
+
 CLASSES = ("on", "near", "off")
+NEAR_PX = 20.0  # the P@20 radius: "near" the truth
 PSR_BANDS = (0.0, 7.0, 9.0, 12.0, 20.0)  # band edges; 7 and 9 are the decider's defaults
 
 
@@ -68,7 +71,7 @@ def distance_class(distance_px: float) -> str:
     """
     if distance_px <= 5.0:
         return "on"
-    return "near" if distance_px <= 20.0 else "off"
+    return "near" if distance_px <= NEAR_PX else "off"
 
 
 def psr_band(psr: float) -> str:
@@ -87,30 +90,48 @@ def psr_band(psr: float) -> str:
     return f">={PSR_BANDS[-1]:g}"
 
 
+def _with_truth(frames, truth: dict[int, np.ndarray], cases: tuple[str, ...], visibility=None):
+    """``(result, truth centre)`` of every target-frame of ``frames`` whose decision's case is
+    one of ``cases`` and that has truth (``truth[id]``: ``(N, 4)`` boxes, NaN rows none); with
+    ``visibility[id]`` (``(N,)``), only where the target is at least ``MIN_VISIBILITY`` visible
+    (a missing id: every frame)."""
+    for fr in frames:
+        k = fr.frame - 1
+        for r in fr.targets:
+            boxes = truth.get(r.id)
+            if r.decision is None or str(r.decision.case) not in cases or boxes is None:
+                continue
+            if k >= len(boxes) or np.isnan(boxes[k]).any():
+                continue
+            vis = (visibility or {}).get(r.id)
+            if vis is not None and k < len(vis) and vis[k] < MIN_VISIBILITY:
+                continue
+            x, y, w, h = boxes[k]
+            yield r, (x + w / 2, y + h / 2)
+
+
+def _distance(box, centre: tuple[float, float]) -> float:
+    """Distance of ``box``'s centre to ``centre``, px (inf without a box)."""
+    return math.inf if box is None else math.hypot(box.cx - centre[0], box.cy - centre[1])
+
+
 def tally(frames, truth: dict[int, np.ndarray]) -> Counter:
     """``(key, class)`` counts of one run: ``frames`` its :class:`~pipeline.types.FrameResult`
     list, ``truth[id]`` the ``(N, 4)`` truth boxes (NaN rows: none). Keys are ``rule:<coast
     rule>`` and ``psr:<band>``."""
     out: Counter = Counter()
-    for fr in frames:
-        for r in fr.targets:
-            d = r.decision
-            app = r.overlays.get("appearance")
-            boxes = truth.get(r.id)
-            if d is None or str(d.case) != "coast" or app is None or boxes is None:
-                continue
-            if fr.frame > len(boxes) or np.isnan(boxes[fr.frame - 1]).any():
-                continue
-            x, y, w, h = boxes[fr.frame - 1]
-            cls = distance_class(math.hypot(app.cx - (x + w / 2), app.cy - (y + h / 2)))
-            rule = d.rule.value.split("{", 1)[0].rstrip("-")  # the rule, without its details
-            out[(f"rule:{rule}", cls)] += 1
-            out[(f"psr:{psr_band(float(r.diagnostics.get('psr', math.nan)))}", cls)] += 1
+    for r, centre in _with_truth(frames, truth, ("coast",)):
+        app = r.overlays.get("appearance")
+        if app is None:
+            continue
+        cls = distance_class(_distance(app, centre))
+        rule = r.decision.rule.value.split("{", 1)[0].rstrip("-")  # the rule, without its details
+        out[(f"rule:{rule}", cls)] += 1
+        out[(f"psr:{psr_band(float(r.diagnostics.get('psr', math.nan)))}", cls)] += 1
     return out
 
 
 REACH = ("filter", "prediction", "neither")
-NEAR_PX = 20.0  # the P@20 radius
 
 
 def reach(
@@ -119,24 +140,12 @@ def reach(
     """``(case, class)`` counts of one run's coasting and lost target-frames in view: ``case``
     ``coast`` or ``lost``, ``class`` one of :data:`REACH` (see the module's doc). ``frames`` is
     its :class:`~pipeline.types.FrameResult` list, ``truth[id]`` the ``(N, 4)`` truth boxes (NaN
-    rows: none), ``visibility[id]`` the ``(N,)`` visible share of each target (frames under 0.25
-    are left out; None or a missing id: every frame counts)."""
+    rows: none), ``visibility[id]`` the ``(N,)`` visible share of each target (frames under
+    ``MIN_VISIBILITY`` are left out; None or a missing id: every frame counts)."""
     out: Counter = Counter()
-    for fr in frames:
-        for r in fr.targets:
-            d = r.decision
-            boxes = truth.get(r.id)
-            if d is None or str(d.case) not in ("coast", "lost") or boxes is None:
-                continue
-            k = fr.frame - 1
-            if k >= len(boxes) or np.isnan(boxes[k]).any():
-                continue
-            vis = (visibility or {}).get(r.id)
-            if vis is not None and k < len(vis) and vis[k] < 0.25:
-                continue
-            x, y, w, h = boxes[k]
-            centre = (x + w / 2, y + h / 2)
-            out[(str(d.case), _reach_class(r.overlays.get("appearance"), r.box, centre))] += 1
+    for r, centre in _with_truth(frames, truth, ("coast", "lost"), visibility):
+        cls = _reach_class(r.overlays.get("appearance"), r.box, centre)
+        out[(str(r.decision.case), cls)] += 1
     return out
 
 
@@ -152,13 +161,9 @@ def _reach_class(found, box, centre: tuple[float, float]) -> str:
     ...                                           (None, at(150)), (at(150), None))]
     ['filter', 'prediction', 'neither', 'neither']
     """
-
-    def near(b) -> bool:
-        return b is not None and math.hypot(b.cx - centre[0], b.cy - centre[1]) <= NEAR_PX
-
-    if near(found):
+    if _distance(found, centre) <= NEAR_PX:
         return "filter"
-    return "prediction" if near(box) else "neither"
+    return "prediction" if _distance(box, centre) <= NEAR_PX else "neither"
 
 
 def reach_table(counts: Counter) -> list[str]:
